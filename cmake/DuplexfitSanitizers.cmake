@@ -1,0 +1,15 @@
+# duplexfit_set_sanitizers(target): DUPLEXFIT_SANITIZE="address;undefined" -> compile and link flags.
+function(duplexfit_set_sanitizers target)
+  if(DUPLEXFIT_SANITIZE)
+    string(REPLACE ";" "," _list "${DUPLEXFIT_SANITIZE}")
+    target_compile_options(${target} PRIVATE -fsanitize=${_list} -fno-omit-frame-pointer
+                                             -fno-sanitize-recover=undefined)
+    target_link_options(${target} PRIVATE -fsanitize=${_list})
+  endif()
+endfunction()
+
+# Our own targets get both warning and sanitizer settings.
+function(duplexfit_configure_target target)
+  duplexfit_set_warnings(${target})
+  duplexfit_set_sanitizers(${target})
+endfunction()

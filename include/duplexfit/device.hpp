@@ -1,0 +1,113 @@
+// Compute devices: the plain C++ reference path and OpenCL devices, one spec syntax everywhere
+// (CLI --device, DUPLEXFIT_DEVICE, tests, benchmarks).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "duplexfit/types.hpp"
+
+namespace duplexfit {
+
+namespace detail {
+class DeviceImpl;
+}
+
+enum class DeviceKind { Reference, OpenCL };
+enum class DeviceType { Cpu, Gpu, Accelerator, Other };
+
+/// "cpu", "gpu", "accelerator" or "other".
+const char* deviceTypeName(DeviceType type) noexcept;
+
+/// What a device is and what it can do. For the reference device, indices are −1 and sizes describe the host.
+struct DeviceInfo {
+  std::string spec;              ///< "ref" or "P:D" (platform and device index): opens this device again
+  int platformIndex = -1;        ///< index in clGetPlatformIDs order, −1 for the reference device
+  int deviceIndex = -1;          ///< index within the platform, −1 for the reference device
+  std::string platform;          ///< platform name, e.g. "Portable Computing Language"
+  std::string name;              ///< device name
+  std::string vendor;
+  std::string driverVersion;     ///< CL_DRIVER_VERSION
+  std::string deviceVersion;     ///< CL_DEVICE_VERSION
+  std::string openclCVersion;    ///< CL_DEVICE_OPENCL_C_VERSION
+  DeviceType type = DeviceType::Cpu;
+  unsigned computeUnits = 0;
+  std::uint64_t globalMemBytes = 0;
+  std::uint64_t maxAllocBytes = 0;  ///< CL_DEVICE_MAX_MEM_ALLOC_SIZE: the largest single buffer
+  std::uint64_t localMemBytes = 0;
+  std::size_t maxWorkGroupSize = 0;
+  bool fp64 = true;                 ///< cl_khr_fp64 (or OpenCL ≥ 1.2 double-fp-config) is reported
+};
+
+/// A parsed device spec. Syntax (case-insensitive):
+///   ""/"default"  first GPU, else first CPU OpenCL device, else the reference device
+///   "ref"         the plain C++ reference path (also "reference", "host")
+///   "P:D"         platform P, device D, as listed by `duplexfit devices`
+///   "cpu"/"gpu"/"accelerator"  the first OpenCL device of that type
+///   anything else a substring of the device name, platform name or vendor (first match)
+struct DeviceSpec {
+  enum class Kind { Default, Reference, Indices, Type, Name };
+  Kind kind = Kind::Default;
+  int platform = -1;
+  int device = -1;
+  DeviceType type = DeviceType::Cpu;
+  std::string name;  ///< the substring for Kind::Name, lower-cased
+
+  /// @throws InvalidArgument on malformed index specs such as "1:" or "a:b".
+  static DeviceSpec parse(std::string_view text);
+  /// The spec in DUPLEXFIT_DEVICE, or Default when it is unset or empty.
+  static DeviceSpec fromEnvironment();
+  std::string toString() const;
+};
+
+/// Options that restrict what an opened device may do.
+struct DeviceOptions {
+  bool allowFp64 = true;           ///< false: treat the device as having no fp64 (forces Precision::Float)
+  std::uint64_t maxAllocBytes = 0; ///< 0: the device's own limit; else a lower cap on any one buffer
+};
+
+/// A compute device. Cheap to copy: copies share one OpenCL context, in-order queue and program cache.
+class Device {
+ public:
+  /// The plain C++ path: always available; the oracle that tests compare the OpenCL path with.
+  static Device reference();
+  /// Opens the device a spec selects.
+  /// @throws DeviceError listing every available device when nothing matches.
+  static Device open(const DeviceSpec& spec, const DeviceOptions& options = {});
+  static Device open(std::string_view spec, const DeviceOptions& options = {});
+  /// Opens DeviceSpec::fromEnvironment().
+  static Device openDefault(const DeviceOptions& options = {});
+  /// Every OpenCL device of every platform; empty (not an error) when no ICD or platform exists.
+  static std::vector<DeviceInfo> enumerate();
+
+  DeviceKind kind() const noexcept;
+  bool isReference() const noexcept { return kind() == DeviceKind::Reference; }
+  const DeviceInfo& info() const noexcept;
+  /// Whether Precision::Double can be used here.
+  bool supportsDouble() const noexcept;
+  /// @throws DeviceError when the precision cannot be used on this device.
+  void requirePrecision(Precision precision) const;
+  /// "name (platform, driver)" for logs and benchmark headers.
+  std::string description() const;
+  /// Waits for all queued work (no-op on the reference device).
+  void finish() const;
+  /// The largest single buffer this Device may allocate (device limit or DeviceOptions cap).
+  std::uint64_t maxAllocBytes() const noexcept { return maxAllocBytes_; }
+  /// @throws DeviceError "<what> needs N MiB but device X allows at most M MiB in one buffer".
+  void checkAllocation(std::uint64_t bytes, const std::string& what) const;
+
+  /// Internal: the OpenCL implementation (null for the reference device).
+  detail::DeviceImpl* impl() const noexcept { return impl_.get(); }
+
+ private:
+  Device() = default;
+  std::shared_ptr<detail::DeviceImpl> impl_;
+  std::shared_ptr<const DeviceInfo> info_;
+  bool fp64Allowed_ = true;
+  std::uint64_t maxAllocBytes_ = 0;
+};
+
+}  // namespace duplexfit

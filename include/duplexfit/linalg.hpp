@@ -1,0 +1,164 @@
+// Vectors and CSR matrices that live on a Device, the BLAS-1 and SpMV operations on them, and the
+// preconditioned conjugate gradient solver used by every hierarchy level (docs: algorithm.md §5).
+// Every operation runs either as OpenCL kernels or, on Device::reference(), as plain C++ loops
+// with the same arithmetic precision.
+#pragma once
+
+#include <cstddef>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "duplexfit/device.hpp"
+#include "duplexfit/sparse.hpp"
+#include "duplexfit/types.hpp"
+
+namespace duplexfit {
+
+namespace detail {
+struct VectorStorage;
+struct CsrStorage;
+}  // namespace detail
+
+/// A vector of n values of one precision on one device. Move-only; clone() copies explicitly.
+class DeviceVector {
+ public:
+  DeviceVector();
+  /// n zeros. @throws DeviceError if the precision is unavailable or n values exceed the max allocation.
+  DeviceVector(const Device& device, std::size_t n, Precision precision);
+  /// Uploads x, rounded to the precision.
+  static DeviceVector upload(const Device& device, const Eigen::VectorXd& x, Precision precision);
+  DeviceVector(DeviceVector&&) noexcept;
+  DeviceVector& operator=(DeviceVector&&) noexcept;
+  ~DeviceVector();
+
+  /// Replaces the contents (x.size() must equal size()).
+  void assign(const Eigen::VectorXd& x);
+  /// Copies the contents to the host, widened to double.
+  Eigen::VectorXd download() const;
+  /// Sets every element to value.
+  void fill(double value);
+  /// A deep copy on the same device.
+  DeviceVector clone() const;
+
+  std::size_t size() const noexcept;
+  Precision precision() const noexcept;
+  const Device& device() const;
+
+  /// Internal storage (for kernel launches).
+  detail::VectorStorage& storage() const { return *storage_; }
+
+ private:
+  std::unique_ptr<detail::VectorStorage> storage_;
+};
+
+/// A CSR matrix uploaded to a device in one precision (values rounded; indices as 32-bit integers).
+class DeviceCsr {
+ public:
+  DeviceCsr();
+  /// Validates A (CsrMatrix::validate), then uploads it.
+  /// @throws InvalidArgument for malformed or non-finite matrices, DeviceError when a buffer exceeds the
+  ///         device's max allocation or the precision is unavailable.
+  static DeviceCsr upload(const Device& device, const CsrMatrix& a, Precision precision);
+  DeviceCsr(DeviceCsr&&) noexcept;
+  DeviceCsr& operator=(DeviceCsr&&) noexcept;
+  ~DeviceCsr();
+
+  std::size_t rows() const noexcept;
+  std::size_t cols() const noexcept;
+  std::size_t nonZeros() const noexcept;
+  Precision precision() const noexcept;
+  const Device& device() const;
+  /// The diagonal, as stored on the host at upload time (double).
+  const Eigen::VectorXd& diagonal() const;
+  /// Bytes one SpMV must move at least (matrix, row pointers, x once, y): for GB/s figures.
+  double spmvBytes() const noexcept;
+
+  detail::CsrStorage& storage() const { return *storage_; }
+
+ private:
+  std::unique_ptr<detail::CsrStorage> storage_;
+};
+
+/// How an SpMV maps rows to work-items. Auto picks RowPerItem on CPU devices (fastest on PoCL, see
+/// docs/benchmarks.md) and RowPerGroup on GPUs.
+enum class SpmvKernel { Auto, RowPerItem, RowPerGroup };
+
+/// y ← A·x. Sizes must match and all operands live on the same device in the same precision.
+void spmv(const DeviceCsr& a, const DeviceVector& x, DeviceVector& y, SpmvKernel kernel = SpmvKernel::Auto);
+/// y ← alpha·x + y
+void axpy(double alpha, const DeviceVector& x, DeviceVector& y);
+/// y ← x + beta·y
+void xpay(const DeviceVector& x, double beta, DeviceVector& y);
+/// x·y, accumulated per work-item in the vector precision and summed on the host in double.
+double dot(const DeviceVector& x, const DeviceVector& y);
+/// ‖x‖₂
+double norm2(const DeviceVector& x);
+
+/// z ← M⁻¹ r for a symmetric positive definite M. Derive to plug a stronger preconditioner into solveCg.
+class Preconditioner {
+ public:
+  virtual ~Preconditioner() = default;
+  virtual void apply(const DeviceVector& r, DeviceVector& z) const = 0;
+  /// A diagonal preconditioner returns its inverse diagonal here; the solver then fuses it into its
+  /// update kernels (one pass less per iteration). Others return nullptr.
+  virtual const DeviceVector* inverseDiagonal() const { return nullptr; }
+  virtual std::string name() const = 0;
+};
+
+/// Jacobi: M = diag(A). For Wendland systems the diagonal is the constant 1 + λ, so it only rescales.
+class JacobiPreconditioner final : public Preconditioner {
+ public:
+  /// @throws InvalidArgument when a diagonal entry is zero, negative or not finite (A is not SPD).
+  explicit JacobiPreconditioner(const DeviceCsr& a);
+  void apply(const DeviceVector& r, DeviceVector& z) const override;
+  const DeviceVector* inverseDiagonal() const override { return &invDiag_; }
+  std::string name() const override { return "jacobi"; }
+
+ private:
+  DeviceVector invDiag_;
+};
+
+/// Why a CG solve stopped.
+enum class StopReason {
+  Converged,       ///< ‖b − Ax‖ ≤ tol·‖b‖
+  ZeroRhs,         ///< b = 0: x = 0 is exact
+  IterationLimit,  ///< maxIterations reached
+  Breakdown,       ///< pᵀAp ≤ 0 or rᵀz ≤ 0: the matrix or preconditioner is not positive definite
+  NonFinite,       ///< a NaN or Inf appeared (overflow, or non-finite input vectors)
+  Stagnated,       ///< the recursive residual met the tolerance but the true one stayed above it
+                   ///< after restarts (the precision cannot reach the tolerance)
+  Cancelled        ///< the progress callback returned false
+};
+const char* stopReasonName(StopReason reason) noexcept;
+
+struct SolverOptions {
+  int maxIterations = 20000;         ///< iteration cap (fine levels can need thousands, algorithm.md §5)
+  double relativeTolerance = 0.0;    ///< stop at ‖r‖ ≤ tol·‖b‖; 0: 1e-6 in double, 1e-5 in float
+  bool useFusedKernels = true;       ///< fused CG updates (fewer passes over memory) where possible
+  SpmvKernel spmvKernel = SpmvKernel::Auto;
+  /// Called every progressInterval iterations with (iteration, relative residual); return false to stop.
+  std::function<bool(int, double)> progress;
+  int progressInterval = 50;
+};
+
+/// Outcome of a solve; non-convergence is reported here, never thrown.
+struct SolveStats {
+  bool converged = false;
+  StopReason reason = StopReason::IterationLimit;
+  int iterations = 0;
+  double relativeResidual = 0.0;     ///< ‖b − Ax‖/‖b‖ recomputed from x at the end (true residual)
+  double recurrenceResidual = 0.0;   ///< the solver's own ‖r‖/‖b‖ when it stopped
+  double tolerance = 0.0;            ///< the tolerance actually used
+  double seconds = 0.0;
+};
+
+/// Solves A x = b by preconditioned conjugate gradients; x holds the start vector on entry.
+/// @param preconditioner nullptr: Jacobi built from A.
+/// @throws InvalidArgument on mismatched sizes, devices or precisions; DeviceError on OpenCL failures.
+SolveStats solveCg(const DeviceCsr& a, const DeviceVector& b, DeviceVector& x, const SolverOptions& options = {},
+                   const Preconditioner* preconditioner = nullptr);
+
+}  // namespace duplexfit

@@ -1,0 +1,47 @@
+// Fixed-radius and k-nearest neighbour queries over a point set (FLANN k-d tree behind a PImpl), with
+// sorted, deterministic results: the sparsity pattern of every Wendland system comes from here.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "duplexfit/types.hpp"
+
+namespace duplexfit {
+
+/// Neighbour lists of q queries in CSR form: the neighbours of query i are
+/// indices[offsets[i] .. offsets[i+1]), with their Euclidean distances, sorted by (distance, index).
+struct NeighborLists {
+  std::vector<std::int64_t> offsets{0};  ///< q + 1 entries
+  std::vector<Index> indices;
+  std::vector<double> distances;
+  std::size_t queries() const noexcept { return offsets.size() - 1; }
+  std::size_t count(std::size_t i) const noexcept {
+    return static_cast<std::size_t>(offsets[i + 1] - offsets[i]);
+  }
+};
+
+/// An exact k-d tree over a fixed set of points (which is copied, so the index owns its data).
+class NeighborIndex {
+ public:
+  /// @throws InvalidArgument when a coordinate is NaN or Inf (naming the row).
+  explicit NeighborIndex(const Points& points);
+  NeighborIndex(NeighborIndex&&) noexcept;
+  NeighborIndex& operator=(NeighborIndex&&) noexcept;
+  ~NeighborIndex();
+
+  std::size_t size() const noexcept;
+  /// All points p with ‖p − q‖ < radius for each query q (the query itself included when it is in the set).
+  /// @throws InvalidArgument when radius ≤ 0 or not finite.
+  NeighborLists radiusSearch(const Points& queries, double radius) const;
+  /// The k nearest points of each query (fewer when the set is smaller).
+  /// @throws InvalidArgument when k ≤ 0.
+  NeighborLists knnSearch(const Points& queries, int k) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace duplexfit

@@ -1,0 +1,144 @@
+// Assembly of the level system Φ + λI (algorithm.md §5) as a CSR matrix: a radius search with the
+// support σ gives each row's neighbours, which are re-sorted by column and mapped through φ(d/σ).
+// Rows are processed in chunks so that the neighbour lists never exist for all rows at once.
+#include "duplexfit/wendland.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <exception>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/neighbors.hpp"
+
+namespace duplexfit {
+
+namespace {
+
+/// Rows per radius-search chunk: bounds the temporary neighbour lists (~12 bytes per non-zero).
+constexpr Index kChunkRows = Index{1} << 16;
+
+/// Rows sampled to estimate the total non-zero count before reserving the CSR arrays.
+constexpr Index kSampleRows = 1024;
+
+constexpr std::int64_t kMaxNonZeros = std::numeric_limits<Index>::max();
+
+struct Entry {
+  Index col;
+  double distance;
+};
+
+void checkCentres(const Points& centres) {
+  for (Eigen::Index i = 0; i < centres.rows(); ++i) {
+    if (!centres.row(i).allFinite()) {
+      throw InvalidArgument("assembleWendland: centre row " + std::to_string(i) +
+                            " has a non-finite coordinate");
+    }
+  }
+}
+
+/// Non-zeros expected for the whole matrix from a sample of evenly spaced rows, with a margin, so the
+/// CSR arrays can be reserved once (unused capacity stays virtual memory, never touched).
+std::size_t estimateNonZeros(const NeighborIndex& index, const Points& centres, double sigma) {
+  const Index n = static_cast<Index>(centres.rows());
+  const Index s = std::min(n, kSampleRows);
+  Points sample(s, 3);
+  for (Index i = 0; i < s; ++i) {
+    sample.row(i) = centres.row(static_cast<Index>((std::int64_t{i} * n) / s));
+  }
+  const NeighborLists lists = index.radiusSearch(sample, sigma);
+  const double mean = static_cast<double>(lists.offsets.back()) / static_cast<double>(s);
+  const double estimate = 1.15 * mean * static_cast<double>(n) + 4096.0;
+  return static_cast<std::size_t>(std::min(estimate, static_cast<double>(kMaxNonZeros)));
+}
+
+}  // namespace
+
+CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
+  if (!(sigma > 0.0) || !std::isfinite(sigma)) {
+    throw InvalidArgument("assembleWendland: sigma must be positive and finite, got " +
+                          std::to_string(sigma));
+  }
+  if (!(lambda >= 0.0) || !std::isfinite(lambda)) {
+    throw InvalidArgument("assembleWendland: lambda must be non-negative and finite, got " +
+                          std::to_string(lambda));
+  }
+  if (centres.rows() > std::numeric_limits<Index>::max()) {
+    throw InvalidArgument("assembleWendland: too many centres (" + std::to_string(centres.rows()) +
+                          ")");
+  }
+  checkCentres(centres);
+
+  const auto n = static_cast<Index>(centres.rows());
+  CsrMatrix a;
+  a.rows = n;
+  a.cols = n;
+  a.rowPtr.assign(static_cast<std::size_t>(n) + 1, 0);
+  if (n == 0) return a;
+
+  const NeighborIndex index(centres);
+  const std::size_t reserve = estimateNonZeros(index, centres, sigma);
+  a.colIdx.reserve(reserve);
+  a.values.reserve(reserve);
+  const double diagonal = 1.0 + lambda;
+
+  Points block;
+  for (Index start = 0; start < n; start += std::min(kChunkRows, n - start)) {
+    const Index len = std::min(kChunkRows, n - start);
+    block = centres.middleRows(start, len);
+    const NeighborLists lists = index.radiusSearch(block, sigma);
+
+    const std::int64_t base = a.rowPtr[static_cast<std::size_t>(start)];
+    const std::int64_t total = base + lists.offsets.back();
+    if (total > kMaxNonZeros) {
+      throw InvalidArgument("assembleWendland: more than 2^31 - 1 non-zeros (sigma " +
+                            std::to_string(sigma) + " is too large for " + std::to_string(n) +
+                            " centres)");
+    }
+    for (Index i = 0; i < len; ++i) {
+      a.rowPtr[static_cast<std::size_t>(start + i) + 1] =
+          static_cast<Index>(base + lists.offsets[static_cast<std::size_t>(i) + 1]);
+    }
+    a.colIdx.resize(static_cast<std::size_t>(total));
+    a.values.resize(static_cast<std::size_t>(total));
+
+    // Each row: copy (column, distance) to a per-thread scratch, sort by column (the search sorts by
+    // distance), then write φ(d/σ), with 1 + λ on the diagonal.
+    std::exception_ptr error;
+#pragma omp parallel
+    {
+      std::vector<Entry> scratch;
+#pragma omp for schedule(dynamic, 256)
+      for (Index i = 0; i < len; ++i) {
+        try {
+          const auto from = static_cast<std::size_t>(lists.offsets[static_cast<std::size_t>(i)]);
+          const auto to = static_cast<std::size_t>(lists.offsets[static_cast<std::size_t>(i) + 1]);
+          scratch.resize(to - from);
+          for (std::size_t k = from; k < to; ++k) {
+            scratch[k - from] = Entry{lists.indices[k], lists.distances[k]};
+          }
+          std::sort(scratch.begin(), scratch.end(),
+                    [](const Entry& x, const Entry& y) { return x.col < y.col; });
+          const Index row = start + i;
+          const auto out = static_cast<std::size_t>(base) + from;
+          Index* col = a.colIdx.data() + out;
+          double* val = a.values.data() + out;
+          for (std::size_t k = 0; k < scratch.size(); ++k) {
+            col[k] = scratch[k].col;
+            val[k] = scratch[k].col == row ? diagonal : wendland(scratch[k].distance / sigma);
+          }
+        } catch (...) {
+#pragma omp critical(duplexfit_wendland_error)
+          if (!error) error = std::current_exception();
+        }
+      }
+    }
+    if (error) std::rethrow_exception(error);
+  }
+  return a;
+}
+
+}  // namespace duplexfit

@@ -1,0 +1,226 @@
+// BLAS-1 operations and the fused CG vector updates: OpenCL launches and their reference twins.
+#include <cmath>
+
+#include "device/cl_check.hpp"
+#include "duplexfit/error.hpp"
+#include "linalg/ops.hpp"
+#include "linalg/storage.hpp"
+
+namespace duplexfit {
+
+using detail::dispatch;
+
+namespace {
+
+cl_uint toUint(std::size_t n) { return static_cast<cl_uint>(n); }
+
+// Launches a reduction kernel whose arguments are already set except the trailing partial buffer at
+// index partialArg, and returns the per-chunk/per-group partials (perItem values each).
+std::vector<double> reduce(const Device& device, Precision precision, cl::Kernel& k, cl_uint partialArg,
+                           std::size_t n, std::size_t perItem, const char* name) {
+  detail::DeviceImpl& impl = *device.impl();
+  const auto& p = impl.params();
+  std::size_t parts = 0, global = 0;
+  if (p.chunkReductions) {
+    parts = (n + p.chunk - 1) / p.chunk;
+    global = parts;
+  } else {
+    parts = std::min(p.groups, (n + p.workGroup - 1) / p.workGroup);
+    global = parts * p.workGroup;
+  }
+  cl::Buffer& scratch = impl.scratch(parts * perItem * detail::sizeOf(precision));
+  detail::setArg(k, partialArg, scratch, name);
+  impl.launch(k, global, p.workGroup, name);
+  return detail::readPartials(impl, scratch, parts * perItem, precision);
+}
+
+}  // namespace
+
+void axpy(double alpha, const DeviceVector& x, DeviceVector& y) {
+  detail::checkCompatible("axpy", x, y);
+  const std::size_t n = x.size();
+  if (n == 0) return;
+  dispatch(x.precision(), [&](auto zero) {
+    using T = decltype(zero);
+    if (x.device().isReference()) {
+      const T a = static_cast<T>(alpha);
+      const T* xs = x.storage().host<T>().data();
+      T* ys = y.storage().host<T>().data();
+#pragma omp parallel for schedule(static)
+      for (std::size_t i = 0; i < n; ++i) ys[i] += a * xs[i];
+      return;
+    }
+    auto& impl = *x.device().impl();
+    cl::Kernel& k = impl.kernel("blas1", x.precision(), "axpy");
+    detail::setArg(k, 0, toUint(n), "axpy");
+    detail::setRealArg(k, 1, alpha, x.precision(), "axpy");
+    detail::setArg(k, 2, x.storage().buffer, "axpy");
+    detail::setArg(k, 3, y.storage().buffer, "axpy");
+    impl.launch(k, n, impl.params().workGroup, "axpy");
+  });
+}
+
+void xpay(const DeviceVector& x, double beta, DeviceVector& y) {
+  detail::checkCompatible("xpay", x, y);
+  const std::size_t n = x.size();
+  if (n == 0) return;
+  dispatch(x.precision(), [&](auto zero) {
+    using T = decltype(zero);
+    if (x.device().isReference()) {
+      const T b = static_cast<T>(beta);
+      const T* xs = x.storage().host<T>().data();
+      T* ys = y.storage().host<T>().data();
+#pragma omp parallel for schedule(static)
+      for (std::size_t i = 0; i < n; ++i) ys[i] = xs[i] + b * ys[i];
+      return;
+    }
+    auto& impl = *x.device().impl();
+    cl::Kernel& k = impl.kernel("blas1", x.precision(), "xpay");
+    detail::setArg(k, 0, toUint(n), "xpay");
+    detail::setArg(k, 1, x.storage().buffer, "xpay");
+    detail::setRealArg(k, 2, beta, x.precision(), "xpay");
+    detail::setArg(k, 3, y.storage().buffer, "xpay");
+    impl.launch(k, n, impl.params().workGroup, "xpay");
+  });
+}
+
+double dot(const DeviceVector& x, const DeviceVector& y) {
+  detail::checkCompatible("dot", x, y);
+  const std::size_t n = x.size();
+  if (n == 0) return 0.0;
+  return dispatch(x.precision(), [&](auto zero) -> double {
+    using T = decltype(zero);
+    if (x.device().isReference()) {
+      const T* xs = x.storage().host<T>().data();
+      const T* ys = y.storage().host<T>().data();
+      double s = 0.0;
+#pragma omp parallel for schedule(static) reduction(+ : s)
+      for (std::size_t i = 0; i < n; ++i) s += static_cast<double>(xs[i] * ys[i]);
+      return s;
+    }
+    auto& impl = *x.device().impl();
+    const char* name = impl.params().chunkReductions ? "dot_chunk" : "dot_group";
+    cl::Kernel& k = impl.kernel("blas1", x.precision(), name);
+    detail::setArgs(k, name, toUint(n), x.storage().buffer, y.storage().buffer);
+    double s = 0.0;
+    for (double v : reduce(x.device(), x.precision(), k, 3, n, 1, name)) s += v;
+    return s;
+  });
+}
+
+double norm2(const DeviceVector& x) {
+  const double d = dot(x, x);
+  return std::isnan(d) ? d : std::sqrt(std::max(0.0, d));  // keep NaN visible to callers
+}
+
+namespace detail {
+
+void vmul(const DeviceVector& d, const DeviceVector& r, DeviceVector& z) {
+  checkCompatible("vmul", d, r);
+  checkCompatible("vmul", r, z);
+  const std::size_t n = r.size();
+  if (n == 0) return;
+  dispatch(r.precision(), [&](auto zero) {
+    using T = decltype(zero);
+    if (r.device().isReference()) {
+      const T* ds = d.storage().host<T>().data();
+      const T* rs = r.storage().host<T>().data();
+      T* zs = z.storage().host<T>().data();
+#pragma omp parallel for schedule(static)
+      for (std::size_t i = 0; i < n; ++i) zs[i] = ds[i] * rs[i];
+      return;
+    }
+    auto& impl = *r.device().impl();
+    cl::Kernel& k = impl.kernel("blas1", r.precision(), "vmul");
+    setArgs(k, "vmul", toUint(n), d.storage().buffer, r.storage().buffer, z.storage().buffer);
+    impl.launch(k, n, impl.params().workGroup, "vmul");
+  });
+}
+
+std::pair<double, double> cgUpdate(double alpha, const DeviceVector& p, const DeviceVector& q,
+                                   const DeviceVector& dinv, DeviceVector& x, DeviceVector& r) {
+  checkCompatible("cgUpdate", p, q);
+  checkCompatible("cgUpdate", p, dinv);
+  checkCompatible("cgUpdate", p, x);
+  checkCompatible("cgUpdate", p, r);
+  const std::size_t n = p.size();
+  if (n == 0) return {0.0, 0.0};
+  return dispatch(p.precision(), [&](auto zero) -> std::pair<double, double> {
+    using T = decltype(zero);
+    if (p.device().isReference()) {
+      const T a = static_cast<T>(alpha);
+      const T* ps = p.storage().host<T>().data();
+      const T* qs = q.storage().host<T>().data();
+      const T* ds = dinv.storage().host<T>().data();
+      T* xs = x.storage().host<T>().data();
+      T* rs = r.storage().host<T>().data();
+      double rz = 0.0, rr = 0.0;
+#pragma omp parallel for schedule(static) reduction(+ : rz, rr)
+      for (std::size_t i = 0; i < n; ++i) {
+        xs[i] += a * ps[i];
+        const T ri = rs[i] - a * qs[i];
+        rs[i] = ri;
+        rz += static_cast<double>(ri * ds[i] * ri);
+        rr += static_cast<double>(ri * ri);
+      }
+      return {rz, rr};
+    }
+    auto& impl = *p.device().impl();
+    const char* name = impl.params().chunkReductions ? "cg_update_chunk" : "cg_update_group";
+    cl::Kernel& k = impl.kernel("cg", p.precision(), name);
+    setArg(k, 0, toUint(n), name);
+    setRealArg(k, 1, alpha, p.precision(), name);
+    setArg(k, 2, p.storage().buffer, name);
+    setArg(k, 3, q.storage().buffer, name);
+    setArg(k, 4, dinv.storage().buffer, name);
+    setArg(k, 5, x.storage().buffer, name);
+    setArg(k, 6, r.storage().buffer, name);
+    const std::vector<double> parts = reduce(p.device(), p.precision(), k, 7, n, 2, name);
+    double rz = 0.0, rr = 0.0;
+    for (std::size_t i = 0; i + 1 < parts.size(); i += 2) {
+      rz += parts[i];
+      rr += parts[i + 1];
+    }
+    return {rz, rr};
+  });
+}
+
+void cgDirection(double beta, const DeviceVector& r, const DeviceVector& dinv, DeviceVector& p) {
+  checkCompatible("cgDirection", r, dinv);
+  checkCompatible("cgDirection", r, p);
+  const std::size_t n = r.size();
+  if (n == 0) return;
+  dispatch(r.precision(), [&](auto zero) {
+    using T = decltype(zero);
+    if (r.device().isReference()) {
+      const T b = static_cast<T>(beta);
+      const T* rs = r.storage().host<T>().data();
+      const T* ds = dinv.storage().host<T>().data();
+      T* ps = p.storage().host<T>().data();
+      if (beta == 0.0) {
+#pragma omp parallel for schedule(static)
+        for (std::size_t i = 0; i < n; ++i) ps[i] = ds[i] * rs[i];
+      } else {
+#pragma omp parallel for schedule(static)
+        for (std::size_t i = 0; i < n; ++i) ps[i] = ds[i] * rs[i] + b * ps[i];
+      }
+      return;
+    }
+    if (beta == 0.0) {
+      vmul(dinv, r, p);  // p may hold garbage (NaN): never read it
+      return;
+    }
+    auto& impl = *r.device().impl();
+    cl::Kernel& k = impl.kernel("cg", r.precision(), "cg_direction");
+    setArg(k, 0, toUint(n), "cg_direction");
+    setRealArg(k, 1, beta, r.precision(), "cg_direction");
+    setArg(k, 2, r.storage().buffer, "cg_direction");
+    setArg(k, 3, dinv.storage().buffer, "cg_direction");
+    setArg(k, 4, p.storage().buffer, "cg_direction");
+    impl.launch(k, n, impl.params().workGroup, "cg_direction");
+  });
+}
+
+}  // namespace detail
+
+}  // namespace duplexfit

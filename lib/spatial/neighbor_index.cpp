@@ -1,0 +1,268 @@
+// NeighborIndex: exact radius and k-nearest queries over a FLANN single k-d tree (header-only use),
+// hidden behind a PImpl. Queries run in parallel blocks (OpenMP) with our own result sets, so that
+// results are deterministic: sorted by (Euclidean distance, index), ties broken by index.
+#include "duplexfit/neighbors.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <exception>
+#include <limits>
+#include <string>
+
+#include <flann/algorithms/dist.h>
+#include <flann/algorithms/kdtree_single_index.h>
+
+#include "duplexfit/error.hpp"
+
+namespace duplexfit {
+
+namespace {
+
+using Tree = flann::KDTreeSingleIndex<flann::L2_3D<double>>;
+
+/// Queries per parallel work item: large enough to amortise scheduling, small enough to balance.
+constexpr std::int64_t kQueryBlock = 512;
+
+/// Leaf size of the k-d tree; 10–16 measured equally fast for radius queries of ~45 results.
+constexpr int kLeafSize = 12;
+
+/// Relative slack on squared bounds handed to FLANN. FLANN prunes and filters on squared distances
+/// (‖p − q‖² < bound) while we decide on the rounded Euclidean distance; the slack makes sure no
+/// candidate that passes our test is pruned by rounding in the tree's incremental box distances.
+constexpr double kSquaredSlack = 1e-9;
+
+/// A neighbour candidate: Euclidean distance and point index.
+struct Hit {
+  double distance;
+  Index index;
+};
+
+inline bool hitLess(const Hit& a, const Hit& b) noexcept {
+  return a.distance < b.distance || (a.distance == b.distance && a.index < b.index);
+}
+
+/// The squared bound to give FLANN so that every point with distance ≤ d passes its tests.
+inline double squaredBound(double d) noexcept {
+  return std::nextafter(d * d * (1.0 + kSquaredSlack), std::numeric_limits<double>::infinity());
+}
+
+void checkFinite(const Points& points, const char* what) {
+  const Eigen::Index n = points.rows();
+  const double* p = points.data();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double* r = p + 3 * i;
+    if (!std::isfinite(r[0]) || !std::isfinite(r[1]) || !std::isfinite(r[2])) {
+      throw InvalidArgument(std::string("NeighborIndex: ") + what + " row " + std::to_string(i) +
+                            " has a non-finite coordinate (" + std::to_string(r[0]) + ", " +
+                            std::to_string(r[1]) + ", " + std::to_string(r[2]) + ")");
+    }
+  }
+}
+
+/// Collects every point with rounded Euclidean distance < radius (strict), unsorted.
+class RadiusCollector final : public flann::ResultSet<double> {
+ public:
+  explicit RadiusCollector(double radius) : radius_(radius), bound_(squaredBound(radius)) {}
+  void reset(std::vector<Hit>* out) noexcept { out_ = out; }
+  bool full() const override { return true; }
+  double worstDist() const override { return bound_; }
+  void addPoint(double squared, size_t index) override {
+    const double d = std::sqrt(squared);
+    if (d < radius_) out_->push_back(Hit{d, static_cast<Index>(index)});
+  }
+
+ private:
+  double radius_;
+  double bound_;
+  std::vector<Hit>* out_ = nullptr;
+};
+
+/// Keeps the k smallest (distance, index) pairs in a max-heap; ties at the k-th place go to the
+/// smaller index, so the result does not depend on the tree's visiting order.
+class KnnCollector final : public flann::ResultSet<double> {
+ public:
+  explicit KnnCollector(std::size_t k) : k_(k) { heap_.reserve(k); }
+  void clear() noexcept {
+    heap_.clear();
+    bound_ = std::numeric_limits<double>::max();
+  }
+  bool full() const override { return heap_.size() == k_; }
+  double worstDist() const override { return bound_; }
+  void addPoint(double squared, size_t index) override {
+    const Hit h{std::sqrt(squared), static_cast<Index>(index)};
+    if (heap_.size() < k_) {
+      heap_.push_back(h);
+      std::push_heap(heap_.begin(), heap_.end(), hitLess);
+    } else if (hitLess(h, heap_.front())) {
+      std::pop_heap(heap_.begin(), heap_.end(), hitLess);
+      heap_.back() = h;
+      std::push_heap(heap_.begin(), heap_.end(), hitLess);
+    } else {
+      return;
+    }
+    if (heap_.size() == k_) bound_ = squaredBound(heap_.front().distance);
+  }
+  /// Sorts the kept hits ascending and appends them to out.
+  void appendSorted(std::vector<Hit>& out) {
+    std::sort_heap(heap_.begin(), heap_.end(), hitLess);
+    out.insert(out.end(), heap_.begin(), heap_.end());
+  }
+
+ private:
+  std::size_t k_;
+  std::vector<Hit> heap_;
+  double bound_ = std::numeric_limits<double>::max();
+};
+
+/// Records the first exception thrown inside an OpenMP region, to rethrow it outside.
+class ErrorSlot {
+ public:
+  void capture() noexcept {
+#pragma omp critical(duplexfit_neighbors_error)
+    if (!error_) error_ = std::current_exception();
+  }
+  void rethrow() const {
+    if (error_) std::rethrow_exception(error_);
+  }
+
+ private:
+  std::exception_ptr error_;
+};
+
+}  // namespace
+
+struct NeighborIndex::Impl {
+  std::vector<double> data;  ///< n×3 row-major copy; FLANN keeps pointers into it
+  std::size_t size = 0;
+  std::unique_ptr<Tree> tree;  ///< null for an empty set
+
+  /// Runs search(collector-free) for every query in parallel blocks and assembles sorted lists.
+  /// searchOne(query pointer, hits) appends the sorted hits of one query.
+  template <typename MakeState, typename SearchOne>
+  NeighborLists run(const Points& queries, MakeState makeState, SearchOne searchOne) const;
+};
+
+template <typename MakeState, typename SearchOne>
+NeighborLists NeighborIndex::Impl::run(const Points& queries, MakeState makeState,
+                                       SearchOne searchOne) const {
+  NeighborLists out;
+  const auto q = static_cast<std::int64_t>(queries.rows());
+  out.offsets.assign(static_cast<std::size_t>(q) + 1, 0);
+  if (q == 0 || size == 0) return out;
+
+  // Pass 1: each block of queries collects its hits in its own buffer; counts go to offsets[i + 1].
+  const std::int64_t blocks = (q + kQueryBlock - 1) / kQueryBlock;
+  std::vector<std::vector<Hit>> blockHits(static_cast<std::size_t>(blocks));
+  const double* qp = queries.data();
+  ErrorSlot error;
+#pragma omp parallel
+  {
+    auto state = makeState();
+#pragma omp for schedule(dynamic, 1)
+    for (std::int64_t b = 0; b < blocks; ++b) {
+      try {
+        std::vector<Hit>& hits = blockHits[static_cast<std::size_t>(b)];
+        const std::int64_t end = std::min(q, (b + 1) * kQueryBlock);
+        for (std::int64_t i = b * kQueryBlock; i < end; ++i) {
+          const std::size_t before = hits.size();
+          searchOne(state, qp + 3 * i, hits);
+          out.offsets[static_cast<std::size_t>(i) + 1] =
+              static_cast<std::int64_t>(hits.size() - before);
+        }
+      } catch (...) {
+        error.capture();
+      }
+    }
+  }
+  error.rethrow();
+
+  for (std::size_t i = 1; i < out.offsets.size(); ++i) out.offsets[i] += out.offsets[i - 1];
+  const auto total = static_cast<std::size_t>(out.offsets.back());
+  out.indices.resize(total);
+  out.distances.resize(total);
+
+  // Pass 2: scatter the block buffers into the flat arrays (parallel copies, buffers freed early).
+#pragma omp parallel for schedule(dynamic, 4)
+  for (std::int64_t b = 0; b < blocks; ++b) {
+    std::vector<Hit>& hits = blockHits[static_cast<std::size_t>(b)];
+    const auto base = static_cast<std::size_t>(out.offsets[static_cast<std::size_t>(b * kQueryBlock)]);
+    Index* idx = out.indices.data() + base;
+    double* dist = out.distances.data() + base;
+    for (std::size_t j = 0; j < hits.size(); ++j) {
+      idx[j] = hits[j].index;
+      dist[j] = hits[j].distance;
+    }
+    std::vector<Hit>().swap(hits);
+  }
+  return out;
+}
+
+NeighborIndex::NeighborIndex(const Points& points) : impl_(std::make_unique<Impl>()) {
+  if (points.rows() > std::numeric_limits<Index>::max()) {
+    throw InvalidArgument("NeighborIndex: " + std::to_string(points.rows()) +
+                          " points exceed the Index range (2^31 - 1)");
+  }
+  checkFinite(points, "point");
+  impl_->size = static_cast<std::size_t>(points.rows());
+  if (impl_->size == 0) return;
+  impl_->data.resize(3 * impl_->size);
+  std::memcpy(impl_->data.data(), points.data(), impl_->data.size() * sizeof(double));
+  const flann::Matrix<double> matrix(impl_->data.data(), impl_->size, 3);
+  impl_->tree = std::make_unique<Tree>(matrix, flann::KDTreeSingleIndexParams(kLeafSize, true));
+  impl_->tree->buildIndex();
+}
+
+NeighborIndex::NeighborIndex(NeighborIndex&&) noexcept = default;
+NeighborIndex& NeighborIndex::operator=(NeighborIndex&&) noexcept = default;
+NeighborIndex::~NeighborIndex() = default;
+
+std::size_t NeighborIndex::size() const noexcept { return impl_ ? impl_->size : 0; }
+
+NeighborLists NeighborIndex::radiusSearch(const Points& queries, double radius) const {
+  if (!(radius > 0.0) || !std::isfinite(radius)) {
+    throw InvalidArgument("NeighborIndex::radiusSearch: radius must be positive and finite, got " +
+                          std::to_string(radius));
+  }
+  checkFinite(queries, "query");
+  if (size() == 0) {
+    NeighborLists out;
+    out.offsets.assign(static_cast<std::size_t>(queries.rows()) + 1, 0);
+    return out;
+  }
+  const Tree& tree = *impl_->tree;
+  const flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, false);
+  return impl_->run(
+      queries, [radius] { return RadiusCollector(radius); },
+      [&tree, &params](RadiusCollector& collector, const double* query, std::vector<Hit>& hits) {
+        const std::size_t before = hits.size();
+        collector.reset(&hits);
+        tree.findNeighbors(collector, query, params);
+        std::sort(hits.begin() + static_cast<std::ptrdiff_t>(before), hits.end(), hitLess);
+      });
+}
+
+NeighborLists NeighborIndex::knnSearch(const Points& queries, int k) const {
+  if (k <= 0) {
+    throw InvalidArgument("NeighborIndex::knnSearch: k must be positive, got " + std::to_string(k));
+  }
+  checkFinite(queries, "query");
+  if (size() == 0) {
+    NeighborLists out;
+    out.offsets.assign(static_cast<std::size_t>(queries.rows()) + 1, 0);
+    return out;
+  }
+  const Tree& tree = *impl_->tree;
+  const std::size_t kept = std::min(static_cast<std::size_t>(k), impl_->size);
+  const flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, false);
+  return impl_->run(
+      queries, [kept] { return KnnCollector(kept); },
+      [&tree, &params](KnnCollector& collector, const double* query, std::vector<Hit>& hits) {
+        collector.clear();
+        tree.findNeighbors(collector, query, params);
+        collector.appendSorted(hits);
+      });
+}
+
+}  // namespace duplexfit

@@ -1,0 +1,59 @@
+// Every embedded kernel program builds on the test device with -Werror; build failures carry the log.
+#include <doctest/doctest.h>
+
+#include <set>
+#include <string>
+
+#include "device/device_impl.hpp"
+#include "device/kernel_sources.hpp"
+#include "duplexfit/error.hpp"
+#include "test_device.hpp"
+
+using namespace duplexfit;
+
+TEST_SUITE("device") {
+  TEST_CASE("kernels: every kernels/*.cl file is embedded and used by a program") {
+    std::set<std::string> embedded;
+    for (const auto& k : detail::embeddedKernels()) {
+      CHECK(k.size > 0);
+      CHECK(std::string(k.data).size() == k.size);
+      embedded.insert(k.name);
+    }
+    CHECK(embedded.count("common") == 1);
+    std::set<std::string> used;
+    for (const auto& [name, files] : detail::programTable()) {
+      for (const auto& f : files) {
+        CHECK(embedded.count(f) == 1);
+        used.insert(f);
+      }
+    }
+    CHECK(used == embedded);
+    CHECK_THROWS_AS(detail::kernelSource("no_such_kernel"), DeviceError);
+  }
+
+  TEST_CASE("kernels: every program builds with -Werror in float and double") {
+    DUPLEXFIT_OPENCL_DEVICE(dev);
+    for (const auto& [name, files] : detail::programTable()) {
+      for (const Precision p : {Precision::Float, Precision::Double}) {
+        if (p == Precision::Double && !dev.supportsDouble()) continue;
+        CAPTURE(name);
+        CAPTURE(precisionName(p));
+        CHECK_NOTHROW(dev.impl()->program(name, p, "-Werror"));
+      }
+    }
+  }
+
+  TEST_CASE("kernels: a build failure reports device, options and the build log") {
+    DUPLEXFIT_OPENCL_DEVICE(dev);
+    try {
+      (void)dev.impl()->program("blas1", Precision::Float, "-Dreal=(");
+      FAIL("expected BuildError");
+    } catch (const BuildError& e) {
+      const std::string what = e.what();
+      CHECK(what.find(dev.info().name) != std::string::npos);
+      CHECK(what.find("-Dreal=(") != std::string::npos);
+      CHECK(what.find("build log") != std::string::npos);
+      CHECK(!e.log().empty());
+    }
+  }
+}

@@ -1,0 +1,255 @@
+// The Wendland basis and assembleWendland against a dense brute-force build on level centres, plus
+// sanity checks of the generated test shapes and random SPD matrices (test/support/shapes.hpp).
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Dense>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/wendland.hpp"
+#include "shapes.hpp"
+
+namespace {
+
+using duplexfit::CsrMatrix;
+using duplexfit::Index;
+using duplexfit::InvalidArgument;
+using duplexfit::Points;
+using duplexfit::wendland;
+using duplexfit::testing::LevelCentres;
+using duplexfit::testing::Shape;
+
+Eigen::MatrixXd toDense(const CsrMatrix& a) {
+  Eigen::MatrixXd d = Eigen::MatrixXd::Zero(a.rows, a.cols);
+  for (Index i = 0; i < a.rows; ++i) {
+    for (Index k = a.rowPtr[static_cast<std::size_t>(i)]; k < a.rowPtr[static_cast<std::size_t>(i) + 1];
+         ++k) {
+      d(i, a.colIdx[static_cast<std::size_t>(k)]) += a.values[static_cast<std::size_t>(k)];
+    }
+  }
+  return d;
+}
+
+/// Φ + λI built densely from the definition (entries with ‖c_i − c_j‖ < σ).
+Eigen::MatrixXd bruteForce(const Points& c, double sigma, double lambda, Eigen::MatrixXi* pattern) {
+  const Eigen::Index n = c.rows();
+  Eigen::MatrixXd d = Eigen::MatrixXd::Zero(n, n);
+  *pattern = Eigen::MatrixXi::Zero(n, n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    for (Eigen::Index j = 0; j < n; ++j) {
+      const double r = (c.row(i) - c.row(j)).norm();
+      if (r < sigma) {
+        d(i, j) = i == j ? 1.0 + lambda : wendland(r / sigma);
+        (*pattern)(i, j) = 1;
+      }
+    }
+  }
+  return d;
+}
+
+double meanRowNonZeros(const CsrMatrix& a) {
+  return a.rows == 0 ? 0.0 : static_cast<double>(a.nonZeros()) / static_cast<double>(a.rows);
+}
+
+void requireSortedColumns(const CsrMatrix& a) {
+  REQUIRE(a.rowPtr.size() == static_cast<std::size_t>(a.rows) + 1);
+  REQUIRE(a.rowPtr.front() == 0);
+  REQUIRE(static_cast<std::size_t>(a.rowPtr.back()) == a.nonZeros());
+  REQUIRE(a.colIdx.size() == a.nonZeros());
+  for (Index i = 0; i < a.rows; ++i) {
+    const auto b = static_cast<std::size_t>(a.rowPtr[static_cast<std::size_t>(i)]);
+    const auto e = static_cast<std::size_t>(a.rowPtr[static_cast<std::size_t>(i) + 1]);
+    REQUIRE(b <= e);
+    for (std::size_t k = b + 1; k < e; ++k) REQUIRE(a.colIdx[k - 1] < a.colIdx[k]);
+  }
+}
+
+}  // namespace
+
+TEST_SUITE("fit") {
+  TEST_CASE("wendland: values at 0 and 1, zero beyond the support, derivative") {
+    CHECK(wendland(0.0) == 1.0);
+    CHECK(wendland(1.0) == 0.0);
+    CHECK(wendland(1.5) == 0.0);
+    CHECK(wendland(0.5) == doctest::Approx(0.0625 * 3.0));
+    CHECK(duplexfit::wendlandDerivative(0.0) == 0.0);
+    CHECK(duplexfit::wendlandDerivative(1.0) == 0.0);
+    const double h = 1e-6;
+    for (double r : {0.05, 0.2, 0.35, 0.5, 0.65, 0.8, 0.95, 0.999}) {
+      CAPTURE(r);
+      const double central = (wendland(r + h) - wendland(r - h)) / (2.0 * h);
+      CHECK(duplexfit::wendlandDerivative(r) == doctest::Approx(central).epsilon(1e-6).scale(1.0));
+      CHECK(wendland(r) > 0.0);
+      CHECK(wendland(r) < 1.0);
+    }
+  }
+
+  TEST_CASE("wendland: assembly equals a dense brute-force build on sphere level centres") {
+    const double delta = 0.02;
+    const int n = 200;
+    const double sigma = duplexfit::testing::sigmaForNonZeros(Shape::Sphere, n, delta, 30.0);
+    const LevelCentres level = duplexfit::testing::levelCentres(Shape::Sphere, n, delta, sigma);
+    for (double lambda : {0.0, 0.25}) {
+      CAPTURE(lambda);
+      const CsrMatrix a = duplexfit::assembleWendland(level.centres, sigma, lambda);
+      REQUIRE(a.rows == 3 * n);
+      REQUIRE(a.cols == 3 * n);
+      requireSortedColumns(a);
+      a.validate();
+
+      Eigen::MatrixXi pattern;
+      const Eigen::MatrixXd want = bruteForce(level.centres, sigma, lambda, &pattern);
+      const Eigen::MatrixXd got = toDense(a);
+      CHECK((got - want).cwiseAbs().maxCoeff() <= 1e-14);
+      CHECK(got == got.transpose());
+      CHECK(got.diagonal().isConstant(1.0 + lambda));
+      // Same pattern row by row, allowing only entries that sit on the support boundary to differ.
+      for (Index i = 0; i < a.rows; ++i) {
+        const Index count = a.rowPtr[static_cast<std::size_t>(i) + 1] - a.rowPtr[static_cast<std::size_t>(i)];
+        CHECK(std::abs(count - pattern.row(i).sum()) <= 1);
+        REQUIRE(count >= 1);
+        REQUIRE(count <= 3 * n);
+      }
+      CHECK(meanRowNonZeros(a) == doctest::Approx(30.0).epsilon(0.2));
+      const Eigen::LLT<Eigen::MatrixXd> llt(got);
+      CHECK(llt.info() == Eigen::Success);
+    }
+  }
+
+  TEST_CASE("wendland: torus level system is symmetric positive definite") {
+    const double sigma = duplexfit::testing::sigmaForNonZeros(Shape::Torus, 300, 0.03, 40.0);
+    const LevelCentres level = duplexfit::testing::levelCentres(Shape::Torus, 300, 0.03, sigma);
+    const CsrMatrix a = duplexfit::assembleWendland(level.centres, sigma);
+    requireSortedColumns(a);
+    const Eigen::MatrixXd dense = toDense(a);
+    CHECK(dense == dense.transpose());
+    CHECK(Eigen::LLT<Eigen::MatrixXd>(dense).info() == Eigen::Success);
+    CHECK(meanRowNonZeros(a) == doctest::Approx(40.0).epsilon(0.2));
+  }
+
+  TEST_CASE("wendland: empty, single and duplicated centres") {
+    const CsrMatrix empty = duplexfit::assembleWendland(Points(0, 3), 0.1);
+    CHECK(empty.rows == 0);
+    CHECK(empty.cols == 0);
+    CHECK(empty.rowPtr == std::vector<Index>{0});
+    CHECK(empty.nonZeros() == 0);
+
+    Points one(1, 3);
+    one << 0.1, 0.2, 0.3;
+    const CsrMatrix single = duplexfit::assembleWendland(one, 0.5, 0.5);
+    CHECK(single.rows == 1);
+    CHECK(single.rowPtr == std::vector<Index>{0, 1});
+    CHECK(single.colIdx == std::vector<Index>{0});
+    CHECK(single.values == std::vector<double>{1.5});
+
+    // Duplicates are assembled faithfully (a singular matrix: the caller merges them, §3.5).
+    Points twice(3, 3);
+    twice << 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0;
+    const CsrMatrix dup = duplexfit::assembleWendland(twice, 1.0);
+    CHECK(dup.rowPtr == std::vector<Index>{0, 2, 4, 5});
+    CHECK(dup.colIdx == std::vector<Index>{0, 1, 0, 1, 2});
+    CHECK(dup.values == std::vector<double>{1.0, 1.0, 1.0, 1.0, 1.0});
+  }
+
+  TEST_CASE("wendland: invalid arguments throw InvalidArgument") {
+    const Points c = duplexfit::testing::fibonacciSphere(20, 0.5);
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const double inf = std::numeric_limits<double>::infinity();
+    for (double sigma : {0.0, -0.1, nan, inf}) {
+      CAPTURE(sigma);
+      CHECK_THROWS_AS(duplexfit::assembleWendland(c, sigma), InvalidArgument);
+    }
+    for (double lambda : {-1e-12, -1.0, nan, inf}) {
+      CAPTURE(lambda);
+      CHECK_THROWS_AS(duplexfit::assembleWendland(c, 0.3, lambda), InvalidArgument);
+    }
+    Points bad = c;
+    bad(17, 2) = nan;
+    try {
+      (void)duplexfit::assembleWendland(bad, 0.3);
+      FAIL("a NaN centre was accepted");
+    } catch (const InvalidArgument& e) {
+      CHECK(std::string(e.what()).find("row 17") != std::string::npos);
+    }
+  }
+
+  TEST_CASE("shapes: sphere and torus samples, level centres and sigma for a row density") {
+    const double delta = 0.03;
+    const double sigma = 0.1;
+    Points normals;
+    const Points sphere = duplexfit::testing::fibonacciSphere(500, 0.5, &normals);
+    REQUIRE(sphere.rows() == 500);
+    for (Eigen::Index i = 0; i < sphere.rows(); ++i) {
+      REQUIRE(sphere.row(i).norm() == doctest::Approx(0.5).epsilon(1e-14));
+      REQUIRE(normals.row(i).norm() == doctest::Approx(1.0).epsilon(1e-14));
+      REQUIRE((normals.row(i) - 2.0 * sphere.row(i)).norm() < 1e-14);
+    }
+
+    const LevelCentres level = duplexfit::testing::levelCentres(Shape::Sphere, 500, delta, sigma);
+    REQUIRE(level.centres.rows() == 1500);
+    CHECK(level.surface == 500);
+    CHECK(level.offset == 500);
+    CHECK(level.offSurface == 500);
+    CHECK(level.sigma == sigma);
+    for (Eigen::Index i = 0; i < 500; ++i) {
+      REQUIRE(level.centres.row(i) == sphere.row(i));
+      REQUIRE(level.centres.row(500 + i).norm() == doctest::Approx(0.5 - delta).epsilon(1e-14));
+      REQUIRE(level.centres.row(1000 + i).norm() == doctest::Approx(0.5 + sigma / 10).epsilon(1e-14));
+    }
+
+    const Points torus = duplexfit::testing::sampledTorus(800, 0.3, 0.15, &normals);
+    REQUIRE(torus.rows() == 800);
+    double meanZ2 = 0.0;
+    for (Eigen::Index i = 0; i < torus.rows(); ++i) {
+      const double ring = std::hypot(torus(i, 0), torus(i, 1));
+      REQUIRE(std::hypot(ring - 0.3, torus(i, 2)) == doctest::Approx(0.15).epsilon(1e-12));
+      REQUIRE(normals.row(i).norm() == doctest::Approx(1.0).epsilon(1e-12));
+      // The outward normal points away from the tube's centre circle.
+      const Eigen::RowVector3d centre(0.3 * torus(i, 0) / ring, 0.3 * torus(i, 1) / ring, 0.0);
+      REQUIRE((torus.row(i) - centre - 0.15 * normals.row(i)).norm() < 1e-12);
+      meanZ2 += torus(i, 2) * torus(i, 2) / 800.0;
+    }
+    // Area-uniform: E[z²] = r²/2 for the tube angle weighted by R + r cos v (the cos term cancels).
+    CHECK(meanZ2 == doctest::Approx(0.15 * 0.15 / 2).epsilon(0.02));
+    CHECK(duplexfit::testing::fibonacciSphere(0, 1.0).rows() == 0);
+    CHECK(duplexfit::testing::sampledTorus(0, 0.3, 0.15).rows() == 0);
+
+    for (Shape shape : {Shape::Sphere, Shape::Torus}) {
+      for (double target : {20.0, 45.0}) {
+        CAPTURE(target);
+        const double s = duplexfit::testing::sigmaForNonZeros(shape, 2000, delta, target);
+        const LevelCentres c = duplexfit::testing::levelCentres(shape, 2000, delta, s);
+        const CsrMatrix a = duplexfit::assembleWendland(c.centres, s);
+        CHECK(meanRowNonZeros(a) == doctest::Approx(target).epsilon(0.2));
+      }
+    }
+  }
+
+  TEST_CASE("shapes: random SPD matrices are symmetric, sorted and diagonally dominant") {
+    for (int n : {0, 1, 2, 7, 500}) {
+      CAPTURE(n);
+      const CsrMatrix a = duplexfit::testing::randomSpdMatrix(n, 9, 1234u);
+      REQUIRE(a.rows == n);
+      REQUIRE(a.cols == n);
+      requireSortedColumns(a);
+      a.validate();
+      const Eigen::MatrixXd d = toDense(a);
+      CHECK(d == d.transpose());
+      for (Index i = 0; i < n; ++i) {
+        const double off = d.row(i).cwiseAbs().sum() - std::abs(d(i, i));
+        REQUIRE(d(i, i) > off);
+      }
+      if (n > 0) CHECK(Eigen::LLT<Eigen::MatrixXd>(d).info() == Eigen::Success);
+      if (n == 500) CHECK(meanRowNonZeros(a) == doctest::Approx(9.0).epsilon(0.1));
+      if (n == 1) CHECK(a.nonZeros() == 1);
+      // The same seed gives the same matrix.
+      const CsrMatrix b = duplexfit::testing::randomSpdMatrix(n, 9, 1234u);
+      CHECK(a.colIdx == b.colIdx);
+      CHECK(a.values == b.values);
+    }
+  }
+}

@@ -1,0 +1,216 @@
+// Preconditioned CG on the device against the reference path and Eigen's double ConjugateGradient,
+// on random SPD and Wendland systems; non-convergence, breakdown and bad input are reported, not hung.
+#include <doctest/doctest.h>
+
+#include <Eigen/IterativeLinearSolvers>
+#include <limits>
+#include <random>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/linalg.hpp"
+#include "duplexfit/wendland.hpp"
+#include "shapes.hpp"
+#include "test_device.hpp"
+
+using namespace duplexfit;
+
+namespace {
+
+Eigen::VectorXd randomVector(Eigen::Index n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  Eigen::VectorXd v(n);
+  for (Eigen::Index i = 0; i < n; ++i) v[i] = u(rng);
+  return v;
+}
+
+Eigen::VectorXd eigenSolve(const CsrMatrix& a, const Eigen::VectorXd& b) {
+  Eigen::ConjugateGradient<Eigen::SparseMatrix<double, Eigen::RowMajor, Index>, Eigen::Lower | Eigen::Upper>
+      cg;
+  cg.setTolerance(1e-12);
+  cg.setMaxIterations(100000);
+  const auto m = a.toEigen();  // the solver keeps a reference: must outlive solve()
+  cg.compute(m);
+  Eigen::VectorXd x = cg.solve(b);
+  REQUIRE(cg.info() == Eigen::Success);
+  return x;
+}
+
+struct Solved {
+  SolveStats stats;
+  Eigen::VectorXd x;
+};
+
+Solved solveOn(const Device& d, const CsrMatrix& a, const Eigen::VectorXd& b, Precision p,
+               const SolverOptions& options = {}, const Preconditioner* (*make)(const DeviceCsr&) = nullptr) {
+  const DeviceCsr m = DeviceCsr::upload(d, a, p);
+  const DeviceVector db = DeviceVector::upload(d, b, p);
+  DeviceVector x(d, b.size() > 0 ? static_cast<std::size_t>(b.size()) : 0, p);
+  const Preconditioner* pre = make != nullptr ? make(m) : nullptr;
+  Solved s{solveCg(m, db, x, options, pre), x.download()};
+  delete pre;
+  return s;
+}
+
+// A preconditioner without a diagonal: exercises the general (unfused) CG path.
+class ScaledIdentity final : public Preconditioner {
+ public:
+  void apply(const DeviceVector& r, DeviceVector& z) const override {
+    z.fill(0.0);
+    axpy(0.5, r, z);
+  }
+  std::string name() const override { return "0.5*I"; }
+};
+
+const Preconditioner* makeScaledIdentity(const DeviceCsr&) { return new ScaledIdentity(); }
+
+void compareWithEigen(const Device& dev, const CsrMatrix& a, unsigned seed) {
+  const Eigen::VectorXd b = randomVector(a.rows, seed);
+  const Eigen::VectorXd xe = eigenSolve(a, b);
+  const Device ref = Device::reference();
+  for (const Precision p : {Precision::Float, Precision::Double}) {
+    if (p == Precision::Double && !dev.supportsDouble()) continue;
+    CAPTURE(precisionName(p));
+    SolverOptions options;
+    options.relativeTolerance = p == Precision::Double ? 1e-10 : 1e-5;
+    const Solved r = solveOn(ref, a, b, p, options);
+    const Solved o = solveOn(dev, a, b, p, options);
+    CHECK(r.stats.converged);
+    CHECK(o.stats.converged);
+    CHECK(o.stats.relativeResidual <= 10 * options.relativeTolerance);
+    // Same algorithm, same precision: iteration counts agree closely.
+    CHECK(std::abs(o.stats.iterations - r.stats.iterations) <= std::max(3, r.stats.iterations / 10));
+    const double relErr = (o.x - xe).norm() / std::max(xe.norm(), 1e-300);
+    CHECK(relErr <= (p == Precision::Double ? 1e-7 : 2e-3));
+    CHECK((r.x - xe).norm() / std::max(xe.norm(), 1e-300) <= (p == Precision::Double ? 1e-7 : 2e-3));
+    // The general path with another preconditioner converges to the same solution.
+    const Solved g = solveOn(dev, a, b, p, options, makeScaledIdentity);
+    CHECK(g.stats.converged);
+    CHECK((g.x - xe).norm() / std::max(xe.norm(), 1e-300) <= (p == Precision::Double ? 1e-7 : 2e-3));
+  }
+}
+
+}  // namespace
+
+TEST_SUITE("linalg") {
+  TEST_CASE("cg: device solution matches Eigen's double CG on random SPD systems") {
+    DUPLEXFIT_OPENCL_DEVICE(dev);
+    for (const int n : {1, 2, 65, 1000, 5003}) {
+      CAPTURE(n);
+      compareWithEigen(dev, testing::randomSpdMatrix(n, 15, 100u + static_cast<unsigned>(n)), 17u);
+    }
+  }
+
+  TEST_CASE("cg: device solution matches Eigen's double CG on Wendland sphere systems") {
+    DUPLEXFIT_OPENCL_DEVICE(dev);
+    const int n = 2000;
+    const double sigma = testing::sigmaForNonZeros(testing::Shape::Sphere, n, 0.1, 40.0);
+    const testing::LevelCentres c = testing::levelCentres(testing::Shape::Sphere, n, 0.1, sigma);
+    compareWithEigen(dev, assembleWendland(c.centres, sigma), 5u);
+    compareWithEigen(dev, assembleWendland(c.centres, sigma, 0.3), 6u);  // approximation mode λ > 0
+  }
+
+  TEST_CASE("cg: n = 0 and b = 0 return at once") {
+    const Device ref = Device::reference();
+    CsrMatrix empty;
+    const Solved s = solveOn(ref, empty, Eigen::VectorXd(0), Precision::Double);
+    CHECK(s.stats.converged);
+    CHECK(s.stats.iterations == 0);
+    const CsrMatrix a = testing::randomSpdMatrix(10, 3, 1u);
+    const Solved z = solveOn(ref, a, Eigen::VectorXd::Zero(10), Precision::Double);
+    CHECK(z.stats.reason == StopReason::ZeroRhs);
+    CHECK(z.x.cwiseAbs().maxCoeff() == 0.0);
+  }
+
+  TEST_CASE("cg: the iteration cap stops a slow solve and reports it") {
+    std::vector<Device> devices{Device::reference()};
+    if (const Device* d = testing::openclTestDevice()) devices.push_back(*d);
+    const int n = 1500;
+    const double sigma = testing::sigmaForNonZeros(testing::Shape::Sphere, n, 0.1, 40.0);
+    const testing::LevelCentres c = testing::levelCentres(testing::Shape::Sphere, n, 0.1, sigma);
+    const CsrMatrix a = assembleWendland(c.centres, sigma);
+    const Eigen::VectorXd b = randomVector(a.rows, 3u);
+    for (const Device& d : devices) {
+      SolverOptions options;
+      options.maxIterations = 5;
+      options.relativeTolerance = 1e-12;
+      const Solved s = solveOn(d, a, b, Precision::Float, options);
+      CHECK_FALSE(s.stats.converged);
+      CHECK(s.stats.reason == StopReason::IterationLimit);
+      CHECK(s.stats.iterations == 5);
+      CHECK(s.stats.relativeResidual < 1.0);
+    }
+  }
+
+  TEST_CASE("cg: an indefinite matrix stops with a breakdown report, no hang") {
+    CsrMatrix a;  // [[1, 2], [2, 1]]: eigenvalues 3 and −1
+    a.rows = a.cols = 2;
+    a.rowPtr = {0, 2, 4};
+    a.colIdx = {0, 1, 0, 1};
+    a.values = {1.0, 2.0, 2.0, 1.0};
+    std::vector<Device> devices{Device::reference()};
+    if (const Device* d = testing::openclTestDevice()) devices.push_back(*d);
+    Eigen::VectorXd b(2);
+    b << 1.0, -1.0;  // the eigenvector of −1: pᵀAp < 0 at the first step
+    for (const Device& d : devices) {
+      const Solved s = solveOn(d, a, b, Precision::Float);
+      CHECK_FALSE(s.stats.converged);
+      CHECK(s.stats.reason == StopReason::Breakdown);
+    }
+    // A symmetric matrix with a negative diagonal cannot be Jacobi-preconditioned: clear error.
+    a.values = {-1.0, 0.5, 0.5, 1.0};
+    CHECK_THROWS_AS(solveOn(Device::reference(), a, b, Precision::Double), InvalidArgument);
+  }
+
+  TEST_CASE("cg: a non-finite right-hand side is reported as NonFinite") {
+    const CsrMatrix a = testing::randomSpdMatrix(20, 4, 2u);
+    Eigen::VectorXd b = Eigen::VectorXd::Ones(20);
+    b[7] = std::numeric_limits<double>::quiet_NaN();
+    std::vector<Device> devices{Device::reference()};
+    if (const Device* d = testing::openclTestDevice()) devices.push_back(*d);
+    for (const Device& d : devices) {
+      const Solved s = solveOn(d, a, b, Precision::Float);
+      CHECK_FALSE(s.stats.converged);
+      CHECK(s.stats.reason == StopReason::NonFinite);
+    }
+  }
+
+  TEST_CASE("cg: the progress callback sees iterations and can cancel") {
+    const int n = 1500;
+    const double sigma = testing::sigmaForNonZeros(testing::Shape::Sphere, n, 0.1, 40.0);
+    const testing::LevelCentres c = testing::levelCentres(testing::Shape::Sphere, n, 0.1, sigma);
+    const CsrMatrix a = assembleWendland(c.centres, sigma);
+    const Eigen::VectorXd b = randomVector(a.rows, 4u);
+    SolverOptions options;
+    options.progressInterval = 2;
+    int calls = 0;
+    options.progress = [&](int it, double res) {
+      ++calls;
+      CHECK(it % 2 == 0);
+      CHECK(res > 0.0);
+      return it < 6;
+    };
+    const Solved s = solveOn(Device::reference(), a, b, Precision::Double, options);
+    CHECK(s.stats.reason == StopReason::Cancelled);
+    CHECK(s.stats.iterations == 6);
+    CHECK(calls == 3);
+  }
+
+  TEST_CASE("cg: a system larger than the max allocation is a clear DeviceError") {
+    const CsrMatrix a = testing::randomSpdMatrix(20000, 20, 5u);
+    std::vector<Device> devices{Device::reference()};
+    if (const Device* d = testing::openclTestDevice()) devices.push_back(*d);
+    for (const Device& d : devices) {
+      DeviceOptions options;
+      options.maxAllocBytes = 1 << 20;  // 1 MiB; the values need ~1.6 MiB in float
+      const Device capped = Device::open(d.info().spec, options);
+      try {
+        (void)DeviceCsr::upload(capped, a, Precision::Float);
+        FAIL("expected DeviceError");
+      } catch (const DeviceError& e) {
+        CHECK(std::string(e.what()).find("non-zeros") != std::string::npos);
+        CHECK(std::string(e.what()).find("MiB") != std::string::npos);
+      }
+    }
+  }
+}

@@ -1,0 +1,88 @@
+// CsrMatrix validation, reference SpMV and Eigen conversions.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/sparse.hpp"
+#include "shapes.hpp"
+
+using namespace duplexfit;
+
+namespace {
+CsrMatrix small() {
+  CsrMatrix a;
+  a.rows = 3;
+  a.cols = 3;
+  a.rowPtr = {0, 2, 3, 5};
+  a.colIdx = {0, 2, 1, 0, 2};
+  a.values = {4.0, 1.0, 3.0, 1.0, 5.0};
+  return a;
+}
+
+std::string validationMessage(const CsrMatrix& a) {
+  try {
+    a.validate();
+  } catch (const InvalidArgument& e) {
+    return e.what();
+  }
+  return {};
+}
+}  // namespace
+
+TEST_SUITE("linalg") {
+  TEST_CASE("csr: validate accepts a well-formed matrix and names the offending element otherwise") {
+    CHECK_NOTHROW(small().validate());
+    CsrMatrix nan = small();
+    nan.values[3] = std::numeric_limits<double>::quiet_NaN();
+    const std::string msg = validationMessage(nan);
+    CHECK(msg.find("row 2") != std::string::npos);
+    CHECK(msg.find("column 0") != std::string::npos);
+    CsrMatrix inf = small();
+    inf.values[1] = std::numeric_limits<double>::infinity();
+    CHECK(validationMessage(inf).find("row 0, column 2") != std::string::npos);
+    CsrMatrix unsorted = small();
+    std::swap(unsorted.colIdx[0], unsorted.colIdx[1]);
+    CHECK(validationMessage(unsorted).find("row 0") != std::string::npos);
+    CsrMatrix range = small();
+    range.colIdx[2] = 3;
+    CHECK(validationMessage(range).find("outside") != std::string::npos);
+    CsrMatrix ptr = small();
+    ptr.rowPtr[3] = 4;
+    CHECK(!validationMessage(ptr).empty());
+    CHECK_NOTHROW(CsrMatrix{}.validate());
+  }
+
+  TEST_CASE("csr: multiply, diagonal, symmetry and Eigen round trip") {
+    const CsrMatrix a = small();
+    Eigen::VectorXd x(3);
+    x << 1.0, -2.0, 0.5;
+    const Eigen::VectorXd y = a.multiply(x);
+    CHECK(y[0] == doctest::Approx(4.5));
+    CHECK(y[1] == doctest::Approx(-6.0));
+    CHECK(y[2] == doctest::Approx(3.5));
+    CHECK((a.toEigen() * x - y).norm() < 1e-14);
+    CHECK(a.diagonal()[2] == 5.0);
+    CHECK(a.isSymmetric());
+    CsrMatrix b = a;
+    b.values[1] = 2.0;
+    CHECK_FALSE(b.isSymmetric());
+    const CsrMatrix c = CsrMatrix::fromEigen(a.toEigen());
+    CHECK(c.rowPtr == a.rowPtr);
+    CHECK(c.colIdx == a.colIdx);
+    CHECK(c.values == a.values);
+    CHECK_THROWS_AS(a.multiply(Eigen::VectorXd(2)), InvalidArgument);
+  }
+
+  TEST_CASE("csr: random SPD matrices are symmetric and valid for n = 0, 1 and larger") {
+    for (const int n : {0, 1, 2, 65, 1000}) {
+      CAPTURE(n);
+      const CsrMatrix a = testing::randomSpdMatrix(n, 12, 7u);
+      CHECK(a.rows == n);
+      CHECK_NOTHROW(a.validate());
+      CHECK(a.isSymmetric());
+    }
+  }
+}

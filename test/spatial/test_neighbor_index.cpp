@@ -1,0 +1,247 @@
+// NeighborIndex against brute force (nanoflann's test pattern): radius and k-nearest queries on random
+// clouds with duplicates, lattice ties at the radius boundary, empty inputs and argument errors.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <random>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/neighbors.hpp"
+
+namespace {
+
+using duplexfit::Index;
+using duplexfit::InvalidArgument;
+using duplexfit::NeighborIndex;
+using duplexfit::NeighborLists;
+using duplexfit::Points;
+
+/// Uniform points in the unit cube from a fixed seed.
+Points randomPoints(int n, std::uint32_t seed) {
+  std::mt19937 engine(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  Points p(n, 3);
+  for (int i = 0; i < n; ++i) p.row(i) << u(engine), u(engine), u(engine);
+  return p;
+}
+
+/// The same arithmetic as the index: ‖q − p‖ = √((q−p)ₓ² + (q−p)ᵧ² + (q−p)𝓏²), left to right.
+double distance(const Points& a, Eigen::Index i, const Points& b, Eigen::Index j) {
+  const double dx = a(i, 0) - b(j, 0);
+  const double dy = a(i, 1) - b(j, 1);
+  const double dz = a(i, 2) - b(j, 2);
+  return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+/// Brute force: all (distance, index) pairs of each query sorted, truncated by radius or by k.
+NeighborLists bruteForce(const Points& points, const Points& queries, double radius, int k) {
+  NeighborLists out;
+  std::vector<std::pair<double, Index>> all;
+  for (Eigen::Index i = 0; i < queries.rows(); ++i) {
+    all.clear();
+    for (Eigen::Index j = 0; j < points.rows(); ++j) {
+      const double d = distance(queries, i, points, j);
+      if (d < radius) all.emplace_back(d, static_cast<Index>(j));
+    }
+    std::sort(all.begin(), all.end());
+    if (k > 0 && all.size() > static_cast<std::size_t>(k)) all.resize(static_cast<std::size_t>(k));
+    for (const auto& [d, j] : all) {
+      out.indices.push_back(j);
+      out.distances.push_back(d);
+    }
+    out.offsets.push_back(static_cast<std::int64_t>(out.indices.size()));
+  }
+  return out;
+}
+
+void requireSameLists(const NeighborLists& got, const NeighborLists& want) {
+  REQUIRE(got.queries() == want.queries());
+  REQUIRE(got.offsets == want.offsets);
+  REQUIRE(got.indices.size() == got.distances.size());
+  for (std::size_t q = 0; q < got.queries(); ++q) {
+    for (auto k = got.offsets[q]; k < got.offsets[q + 1]; ++k) {
+      const auto e = static_cast<std::size_t>(k);
+      INFO("query " << q << ", entry " << k - got.offsets[q]);
+      REQUIRE(got.indices[e] == want.indices[e]);
+      REQUIRE(got.distances[e] == doctest::Approx(want.distances[e]).epsilon(1e-15));
+    }
+  }
+}
+
+/// A random cloud of 2000 points whose last 200 rows duplicate earlier ones (some several times).
+Points cloudWithDuplicates() {
+  Points p = randomPoints(2000, 7u);
+  std::mt19937 engine(11u);
+  std::uniform_int_distribution<int> pick(0, 1799);
+  for (int i = 1800; i < 2000; ++i) p.row(i) = p.row(pick(engine));
+  return p;
+}
+
+/// 300 queries: 200 random points (not in the set) and 100 rows of the set itself.
+Points mixedQueries(const Points& points) {
+  Points q(300, 3);
+  q.topRows(200) = randomPoints(200, 99u);
+  for (int i = 0; i < 100; ++i) q.row(200 + i) = points.row((i * 37) % points.rows());
+  return q;
+}
+
+/// The integer lattice {0..4}³ (125 points): many exact ties and exact boundary distances.
+Points lattice() {
+  Points p(125, 3);
+  int r = 0;
+  for (int x = 0; x < 5; ++x) {
+    for (int y = 0; y < 5; ++y) {
+      for (int z = 0; z < 5; ++z) p.row(r++) << x, y, z;
+    }
+  }
+  return p;
+}
+
+}  // namespace
+
+TEST_SUITE("spatial") {
+  TEST_CASE("neighbors: radius search equals brute force on a cloud with duplicates") {
+    const Points points = cloudWithDuplicates();
+    const Points queries = mixedQueries(points);
+    const NeighborIndex index(points);
+    CHECK(index.size() == 2000);
+    for (double radius : {1e-9, 0.01, 0.05, 0.15, 0.4, 10.0}) {
+      CAPTURE(radius);
+      const NeighborLists got = index.radiusSearch(queries, radius);
+      requireSameLists(got, bruteForce(points, queries, radius, 0));
+      if (radius == 10.0) CHECK(got.count(0) == 2000);
+    }
+    // A set point always finds itself, and its duplicates at distance 0 in index order.
+    const NeighborLists self = index.radiusSearch(points, 1e-9);
+    for (Eigen::Index i = 0; i < points.rows(); ++i) {
+      const auto first = static_cast<std::size_t>(self.offsets[static_cast<std::size_t>(i)]);
+      REQUIRE(self.count(static_cast<std::size_t>(i)) >= 1);
+      CHECK(self.distances[first] == 0.0);
+    }
+  }
+
+  TEST_CASE("neighbors: radius search across many query blocks equals brute force") {
+    const Points points = randomPoints(4000, 3u);
+    const NeighborIndex index(points);
+    const NeighborLists got = index.radiusSearch(points, 0.08);
+    requireSameLists(got, bruteForce(points, points, 0.08, 0));
+    CHECK(got.indices.size() > 4000 * 5);
+  }
+
+  TEST_CASE("neighbors: radius is strict and ties sort by index on a lattice") {
+    const Points points = lattice();
+    const NeighborIndex index(points);
+    Points centre(1, 3);
+    centre << 2.0, 2.0, 2.0;
+    const NeighborLists exact = index.radiusSearch(centre, 1.0);
+    REQUIRE(exact.count(0) == 1);  // the six neighbours at distance exactly 1 are excluded
+    const NeighborLists wider = index.radiusSearch(centre, std::nextafter(1.0, 2.0));
+    REQUIRE(wider.count(0) == 7);
+    CHECK(wider.indices[0] == 62);
+    CHECK(std::is_sorted(wider.indices.begin() + 1, wider.indices.end()));
+    for (double radius : {1.0, 1.5, std::sqrt(2.0), std::sqrt(3.0), 2.0, 3.0}) {
+      CAPTURE(radius);
+      requireSameLists(index.radiusSearch(points, radius), bruteForce(points, points, radius, 0));
+    }
+  }
+
+  TEST_CASE("neighbors: knn equals brute force, ties broken by index") {
+    const Points points = cloudWithDuplicates();
+    const Points queries = mixedQueries(points);
+    const NeighborIndex index(points);
+    const double all = std::numeric_limits<double>::infinity();
+    for (int k : {1, 2, 7, 45, 200}) {
+      CAPTURE(k);
+      requireSameLists(index.knnSearch(queries, k), bruteForce(points, queries, all, k));
+    }
+    const Points grid = lattice();
+    const NeighborIndex latticeIndex(grid);
+    for (int k : {1, 4, 7, 10, 27}) {
+      CAPTURE(k);
+      requireSameLists(latticeIndex.knnSearch(grid, k), bruteForce(grid, grid, all, k));
+    }
+  }
+
+  TEST_CASE("neighbors: knn with k larger than the set returns every point") {
+    const Points points = randomPoints(10, 5u);
+    const NeighborIndex index(points);
+    const NeighborLists got = index.knnSearch(points, 1000);
+    REQUIRE(got.queries() == 10);
+    for (std::size_t q = 0; q < 10; ++q) CHECK(got.count(q) == 10);
+    requireSameLists(got, bruteForce(points, points, std::numeric_limits<double>::infinity(), 0));
+  }
+
+  TEST_CASE("neighbors: empty point sets and empty queries") {
+    const NeighborIndex empty{Points(0, 3)};
+    CHECK(empty.size() == 0);
+    const Points queries = randomPoints(5, 1u);
+    for (const NeighborLists& lists :
+         {empty.radiusSearch(queries, 0.5), empty.knnSearch(queries, 3)}) {
+      CHECK(lists.queries() == 5);
+      CHECK(lists.offsets == std::vector<std::int64_t>(6, 0));
+      CHECK(lists.indices.empty());
+      CHECK(lists.distances.empty());
+    }
+    const NeighborIndex index(queries);
+    for (const NeighborLists& lists :
+         {index.radiusSearch(Points(0, 3), 0.5), index.knnSearch(Points(0, 3), 3)}) {
+      CHECK(lists.queries() == 0);
+      CHECK(lists.offsets == std::vector<std::int64_t>{0});
+    }
+  }
+
+  TEST_CASE("neighbors: a moved index keeps answering") {
+    const Points points = randomPoints(50, 2u);
+    NeighborIndex first(points);
+    NeighborIndex second(std::move(first));
+    CHECK(second.size() == 50);
+    requireSameLists(second.radiusSearch(points, 0.3), bruteForce(points, points, 0.3, 0));
+    NeighborIndex third{Points(0, 3)};
+    third = std::move(second);
+    CHECK(third.size() == 50);
+    CHECK(third.knnSearch(points, 3).indices.size() == 150);
+  }
+
+  TEST_CASE("neighbors: invalid arguments throw InvalidArgument") {
+    Points points = randomPoints(20, 4u);
+    points(13, 1) = std::numeric_limits<double>::quiet_NaN();
+    try {
+      const NeighborIndex index(points);
+      FAIL("a NaN coordinate was accepted");
+    } catch (const InvalidArgument& e) {
+      CHECK(std::string(e.what()).find("row 13") != std::string::npos);
+    }
+    points(13, 1) = 0.5;
+    points(4, 2) = -std::numeric_limits<double>::infinity();
+    CHECK_THROWS_AS(NeighborIndex{points}, InvalidArgument);
+    points(4, 2) = 0.5;
+
+    const NeighborIndex index(points);
+    Points queries = randomPoints(8, 6u);
+    queries(6, 0) = std::numeric_limits<double>::infinity();
+    try {
+      (void)index.radiusSearch(queries, 0.1);
+      FAIL("an infinite query was accepted");
+    } catch (const InvalidArgument& e) {
+      CHECK(std::string(e.what()).find("row 6") != std::string::npos);
+    }
+    CHECK_THROWS_AS((void)index.knnSearch(queries, 2), InvalidArgument);
+    queries(6, 0) = 0.0;
+    for (double radius : {0.0, -1.0, std::numeric_limits<double>::quiet_NaN(),
+                          std::numeric_limits<double>::infinity()}) {
+      CAPTURE(radius);
+      CHECK_THROWS_AS((void)index.radiusSearch(queries, radius), InvalidArgument);
+    }
+    CHECK_THROWS_AS((void)index.knnSearch(queries, 0), InvalidArgument);
+    CHECK_THROWS_AS((void)index.knnSearch(queries, -3), InvalidArgument);
+    const NeighborIndex empty{Points(0, 3)};
+    CHECK_THROWS_AS((void)empty.radiusSearch(queries, -1.0), InvalidArgument);
+    CHECK_THROWS_AS((void)empty.knnSearch(queries, 0), InvalidArgument);
+  }
+}
