@@ -49,3 +49,10 @@ __kernel void dot_group(const uint n, __global const real* restrict x, __global 
   group_reduce(s);
   if (get_local_id(0) == 0) partial[get_group_id(0)] = s[0];
 }
+
+/* a <- b + s*c (the STREAM triad; used by the benchmarks to measure the device's memory bandwidth) */
+__kernel void triad(const uint n, __global real* restrict a, __global const real* restrict b,
+                    __global const real* restrict c, const real s) {
+  const uint i = get_global_id(0);
+  if (i < n) a[i] = b[i] + s * c[i];
+}

@@ -137,6 +137,30 @@ void vmul(const DeviceVector& d, const DeviceVector& r, DeviceVector& z) {
   });
 }
 
+void triad(DeviceVector& a, const DeviceVector& b, const DeviceVector& c, double s) {
+  checkCompatible("triad", a, b);
+  checkCompatible("triad", b, c);
+  const std::size_t n = a.size();
+  if (n == 0) return;
+  dispatch(a.precision(), [&](auto zero) {
+    using T = decltype(zero);
+    if (a.device().isReference()) {
+      const T sc = static_cast<T>(s);
+      T* as = a.storage().host<T>().data();
+      const T* bs = b.storage().host<T>().data();
+      const T* cs = c.storage().host<T>().data();
+#pragma omp parallel for schedule(static)
+      for (std::size_t i = 0; i < n; ++i) as[i] = bs[i] + sc * cs[i];
+      return;
+    }
+    auto& impl = *a.device().impl();
+    cl::Kernel& k = impl.kernel("blas1", a.precision(), "triad");
+    setArgs(k, "triad", toUint(n), a.storage().buffer, b.storage().buffer, c.storage().buffer);
+    setRealArg(k, 4, s, a.precision(), "triad");
+    impl.launch(k, n, impl.params().workGroup, "triad");
+  });
+}
+
 std::pair<double, double> cgUpdate(double alpha, const DeviceVector& p, const DeviceVector& q,
                                    const DeviceVector& dinv, DeviceVector& x, DeviceVector& r) {
   checkCompatible("cgUpdate", p, q);

@@ -16,6 +16,8 @@ std::pair<double, double> cgUpdate(double alpha, const DeviceVector& p, const De
 void cgDirection(double beta, const DeviceVector& r, const DeviceVector& dinv, DeviceVector& p);
 /// z ← d .* r
 void vmul(const DeviceVector& d, const DeviceVector& r, DeviceVector& z);
+/// a ← b + s·c (STREAM triad, for bandwidth measurements).
+void triad(DeviceVector& a, const DeviceVector& b, const DeviceVector& c, double s);
 /// Resolves SpmvKernel::Auto for a device.
 SpmvKernel resolveSpmvKernel(const Device& device, SpmvKernel kernel);
 

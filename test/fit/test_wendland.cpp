@@ -115,14 +115,13 @@ TEST_SUITE("fit") {
         REQUIRE(count <= 3 * n);
       }
       CHECK(meanRowNonZeros(a) == doctest::Approx(30.0).epsilon(0.2));
-      const Eigen::LLT<Eigen::MatrixXd> llt(got);
-      CHECK(llt.info() == Eigen::Success);
+      if (lambda == 0.0) CHECK(Eigen::LLT<Eigen::MatrixXd>(got).info() == Eigen::Success);
     }
   }
 
   TEST_CASE("wendland: torus level system is symmetric positive definite") {
-    const double sigma = duplexfit::testing::sigmaForNonZeros(Shape::Torus, 300, 0.03, 40.0);
-    const LevelCentres level = duplexfit::testing::levelCentres(Shape::Torus, 300, 0.03, sigma);
+    const double sigma = duplexfit::testing::sigmaForNonZeros(Shape::Torus, 150, 0.03, 40.0);
+    const LevelCentres level = duplexfit::testing::levelCentres(Shape::Torus, 150, 0.03, sigma);
     const CsrMatrix a = duplexfit::assembleWendland(level.centres, sigma);
     requireSortedColumns(a);
     const Eigen::MatrixXd dense = toDense(a);

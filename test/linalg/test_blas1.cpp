@@ -103,6 +103,21 @@ TEST_SUITE("linalg") {
     }
   }
 
+  TEST_CASE("blas1: the STREAM triad kernel agrees with the reference") {
+    DUPLEXFIT_OPENCL_DEVICE(dev);
+    for (const int n : kSizes) {
+      CAPTURE(n);
+      const Eigen::VectorXd b = randomVector(n, 8), c = randomVector(n, 9);
+      for (const Device* d : {static_cast<const Device*>(nullptr), &dev}) {
+        const Device use = d != nullptr ? *d : Device::reference();
+        DeviceVector A(use, static_cast<std::size_t>(n), Precision::Float);
+        detail::triad(A, DeviceVector::upload(use, b, Precision::Float), DeviceVector::upload(use, c, Precision::Float),
+                      3.0);
+        CHECK(maxDiff(A.download(), b + 3.0 * c) <= 8 * tolFor(Precision::Float));
+      }
+    }
+  }
+
   TEST_CASE("blas1: mismatched sizes and devices are rejected") {
     const Device ref = Device::reference();
     DeviceVector a(ref, 3, Precision::Double), b(ref, 4, Precision::Double), c(ref, 3, Precision::Float);

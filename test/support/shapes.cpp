@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <random>
 #include <string>
 #include <utility>
@@ -65,49 +66,74 @@ double flatMeanNonZeros(double density, double delta, double sigma) {
   return density * kPi * sum / 3.0;
 }
 
-/// Exact mean row counts of levelCentres(shape, n, delta, σ) over sampled rows, for any σ up to the
-/// maximum the candidate lists were built for.
-class RowSampler {
+/// For sampled rows of levelCentres(shape, n, delta, σ), the support radius at which each (row, column)
+/// pair enters the matrix. A pair of centres p + a·n_p and q + b·n_q (a, b ∈ {0, −δ, σ/10}) is a
+/// non-zero iff ‖v + σw‖ < σ, with v, w independent of σ and ‖w‖ ≤ 0.2: that holds exactly for σ above
+/// one threshold, so the mean row count at σ is the number of thresholds below σ per sampled row.
+class PairThresholds {
  public:
-  RowSampler(Shape shape, int n, double delta, double maxSigma) : delta_(delta) {
+  PairThresholds(Shape shape, int n, double delta) : delta_(delta) {
     points_ = surface(shape, n, normals_);
     const int s = std::min(n, 300);
-    Points queries(s, 3);
+    queries_.resize(s, 3);
     for (int i = 0; i < s; ++i) {
       const int row = static_cast<int>((std::int64_t{2 * i + 1} * n) / (2 * s));
       rows_.push_back(row);
-      queries.row(i) = points_.row(row);
+      queries_.row(i) = points_.row(row);
     }
-    // Every pair that can come within σ of each other after both moved along their normals.
-    const double reach = maxSigma + 2.0 * std::max(std::abs(delta), maxSigma / 10.0);
-    lists_ = NeighborIndex(points_).radiusSearch(queries, reach * (1.0 + 1e-9));
+    index_ = std::make_unique<NeighborIndex>(points_);
   }
 
-  double meanNonZeros(double sigma) const {
-    const auto offsets = layerOffsets(delta_, sigma);
-    std::int64_t count = 0;
+  std::size_t sampledRows() const { return 3 * rows_.size(); }
+
+  /// The sorted thresholds below maxSigma of the sampled rows' pairs, or of all of them when the
+  /// candidate search reached every point (*complete is then set).
+  std::vector<double> thresholds(double maxSigma, bool* complete) const {
+    // Candidates: surface points that can come within maxSigma once both moved along their normals.
+    const double reach = maxSigma + 2.0 * std::max(std::abs(delta_), maxSigma / 10.0);
+    const NeighborLists lists = index_->radiusSearch(queries_, reach * (1.0 + 1e-9));
+    *complete = lists.indices.size() == rows_.size() * static_cast<std::size_t>(points_.rows());
+    // Layer kinds: 0 surface (offset 0), 1 offset (−δ), 2 off-surface (σ/10, so it enters w).
+    const double fixedOffset[3] = {0.0, -delta_, 0.0};
+    const double sigmaFactor[3] = {0.0, 0.0, 0.1};
+    std::vector<double> out;
     for (std::size_t s = 0; s < rows_.size(); ++s) {
-      const Eigen::RowVector3d p = points_.row(rows_[s]);
-      const Eigen::RowVector3d np = normals_.row(rows_[s]);
-      for (double a : offsets) {
-        const Eigen::RowVector3d q = p + a * np;
-        for (auto k = lists_.offsets[s]; k < lists_.offsets[s + 1]; ++k) {
-          const Index j = lists_.indices[static_cast<std::size_t>(k)];
-          for (double b : offsets) {
-            if ((points_.row(j) + b * normals_.row(j) - q).norm() < sigma) ++count;
+      const double* p = points_.data() + 3 * static_cast<std::size_t>(rows_[s]);
+      const double* np = normals_.data() + 3 * static_cast<std::size_t>(rows_[s]);
+      for (auto k = lists.offsets[s]; k < lists.offsets[s + 1]; ++k) {
+        const auto j = static_cast<std::size_t>(lists.indices[static_cast<std::size_t>(k)]);
+        const double* q = points_.data() + 3 * j;
+        const double* nq = normals_.data() + 3 * j;
+        for (int a = 0; a < 3; ++a) {
+          for (int b = 0; b < 3; ++b) {
+            double vv = 0.0;
+            double vw = 0.0;
+            double ww = 0.0;
+            for (int c = 0; c < 3; ++c) {
+              const double v = q[c] + fixedOffset[b] * nq[c] - p[c] - fixedOffset[a] * np[c];
+              const double w = sigmaFactor[b] * nq[c] - sigmaFactor[a] * np[c];
+              vv += v * v;
+              vw += v * w;
+              ww += w * w;
+            }
+            // ‖v + σw‖² < σ²  ⇔  (1 − ww)σ² − 2·vw·σ − vv > 0  ⇔  σ > the larger root.
+            const double t = (vw + std::sqrt(vw * vw + (1.0 - ww) * vv)) / (1.0 - ww);
+            if (t < maxSigma || *complete) out.push_back(t);
           }
         }
       }
     }
-    return static_cast<double>(count) / static_cast<double>(3 * rows_.size());
+    std::sort(out.begin(), out.end());
+    return out;
   }
 
  private:
   double delta_;
   Points points_;
   Points normals_;
+  Points queries_;
   std::vector<int> rows_;
-  NeighborLists lists_;
+  std::unique_ptr<NeighborIndex> index_;
 };
 
 }  // namespace
@@ -188,18 +214,18 @@ double sigmaForNonZeros(Shape shape, int n, double delta, double nnzPerRow) {
   }
   const double guess = hi;
 
-  // Refine against exact counts of sampled rows (curvature, and the sheet model's neglect of edges).
-  // Shapes fit in a ball of radius 0.5, so σ = 2.5 sees every centre of every row.
-  const double maxSigma = std::min(2.5, 4.0 * guess);
-  const RowSampler sampler(shape, n, delta, maxSigma);
-  lo = 0.0;
-  hi = maxSigma;
-  if (sampler.meanNonZeros(hi) < nnzPerRow) return hi;
-  for (int it = 0; it < 40; ++it) {
-    const double mid = 0.5 * (lo + hi);
-    (sampler.meanNonZeros(mid) < nnzPerRow ? lo : hi) = mid;
+  // Refine against the exact entry thresholds of sampled rows (curvature, layers, edges of the torus):
+  // the wanted σ lies between the k-th and (k+1)-th smallest threshold, k = nnzPerRow × sampled rows.
+  const PairThresholds pairs(shape, n, delta);
+  const auto k = static_cast<std::size_t>(std::llround(nnzPerRow * static_cast<double>(pairs.sampledRows())));
+  double maxSigma = 2.0 * guess;
+  for (;;) {
+    bool complete = false;
+    const std::vector<double> t = pairs.thresholds(maxSigma, &complete);
+    if (t.size() > k) return 0.5 * (t[k - 1] + t[k]);
+    if (complete) return 1.01 * t.back();  // more than every centre was asked for
+    maxSigma *= 2.0;
   }
-  return hi;
 }
 
 CsrMatrix randomSpdMatrix(int n, int nnzPerRow, std::uint32_t seed) {
