@@ -92,6 +92,9 @@ class Device {
   void requirePrecision(Precision precision) const;
   /// "name (platform, driver)" for logs and benchmark headers.
   std::string description() const;
+  /// Builds every OpenCL program for the precision now (otherwise each builds at its first use, about
+  /// 1 s uncached on PoCL). No-op on the reference device. @throws BuildError, DeviceError.
+  void compileKernels(Precision precision) const;
   /// Waits for all queued work (no-op on the reference device).
   void finish() const;
   /// The largest single buffer this Device may allocate (device limit or DeviceOptions cap).

@@ -354,6 +354,12 @@ std::string Device::description() const {
   return info_->name + " (" + info_->spec + ", " + info_->platform + ", driver " + info_->driverVersion + ")";
 }
 
+void Device::compileKernels(Precision precision) const {
+  requirePrecision(precision);
+  if (!impl_) return;
+  for (const auto& entry : detail::programTable()) (void)impl_->program(entry.first, precision);
+}
+
 void Device::finish() const {
   if (impl_) DUPLEXFIT_CL_CHECK(impl_->queue().finish());
 }
