@@ -18,8 +18,9 @@ namespace duplexfit {
 
 namespace {
 
-/// Rows per radius-search chunk: bounds the temporary neighbour lists (~12 bytes per non-zero).
-constexpr Index kChunkRows = Index{1} << 16;
+/// Rows per radius-search chunk: bounds the temporary neighbour lists (~28 bytes per non-zero) and
+/// keeps them small enough for the search to reuse its buffers from one chunk to the next.
+constexpr Index kChunkRows = Index{1} << 15;
 
 /// Rows sampled to estimate the total non-zero count before reserving the CSR arrays.
 constexpr Index kSampleRows = 1024;
@@ -31,6 +32,21 @@ struct Entry {
   double distance;
 };
 
+/// Sorts a row's entries by column: an insertion sort for the usual tens of entries (fewer
+/// mispredicted branches than std::sort), std::sort for long rows.
+void sortByColumn(Entry* first, Entry* last) {
+  if (last - first > 64) {
+    std::sort(first, last, [](const Entry& x, const Entry& y) { return x.col < y.col; });
+    return;
+  }
+  for (Entry* i = first + (first != last); i < last; ++i) {
+    const Entry e = *i;
+    Entry* j = i;
+    for (; j > first && e.col < j[-1].col; --j) *j = j[-1];
+    *j = e;
+  }
+}
+
 void checkCentres(const Points& centres) {
   for (Eigen::Index i = 0; i < centres.rows(); ++i) {
     if (!centres.row(i).allFinite()) {
@@ -40,8 +56,8 @@ void checkCentres(const Points& centres) {
   }
 }
 
-/// Non-zeros expected for the whole matrix from a sample of evenly spaced rows, with a margin, so the
-/// CSR arrays can be reserved once (unused capacity stays virtual memory, never touched).
+/// Non-zeros expected for the whole matrix from a sample of evenly spaced rows, with a margin, so
+/// the CSR arrays can be reserved once (unused capacity stays virtual memory, never touched).
 std::size_t estimateNonZeros(const NeighborIndex& index, const Points& centres, double sigma) {
   const Index n = static_cast<Index>(centres.rows());
   const Index s = std::min(n, kSampleRows);
@@ -105,8 +121,8 @@ CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
     a.colIdx.resize(static_cast<std::size_t>(total));
     a.values.resize(static_cast<std::size_t>(total));
 
-    // Each row: copy (column, distance) to a per-thread scratch, sort by column (the search sorts by
-    // distance), then write φ(d/σ), with 1 + λ on the diagonal.
+    // Each row: copy (column, distance) to a per-thread scratch, sort by column (the search sorts
+    // by distance), then write φ(d/σ), with 1 + λ on the diagonal.
     std::exception_ptr error;
 #pragma omp parallel
     {
@@ -120,8 +136,7 @@ CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
           for (std::size_t k = from; k < to; ++k) {
             scratch[k - from] = Entry{lists.indices[k], lists.distances[k]};
           }
-          std::sort(scratch.begin(), scratch.end(),
-                    [](const Entry& x, const Entry& y) { return x.col < y.col; });
+          sortByColumn(scratch.data(), scratch.data() + scratch.size());
           const Index row = start + i;
           const auto out = static_cast<std::size_t>(base) + from;
           Index* col = a.colIdx.data() + out;

@@ -1,15 +1,17 @@
 // NeighborIndex: exact radius and k-nearest queries over a FLANN single k-d tree (header-only use),
 // hidden behind a PImpl. Queries run in parallel blocks (OpenMP) with our own result sets, so that
 // results are deterministic: sorted by (Euclidean distance, index), ties broken by index.
-#include "duplexfit/neighbors.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <exception>
 #include <limits>
+#include <optional>
 #include <string>
+#include <vector>
+
+#include "duplexfit/neighbors.hpp"
 
 // FLANN's pool allocator may return null in theory, which GCC's -Wnull-dereference reports from the
 // inlined tree construction even though the header is a system header.
@@ -34,8 +36,16 @@ using Tree = flann::KDTreeSingleIndex<flann::L2_3D<double>>;
 /// Queries per parallel work item: large enough to amortise scheduling, small enough to balance.
 constexpr std::int64_t kQueryBlock = 512;
 
-/// Leaf size of the k-d tree; 10–16 measured equally fast for radius queries of ~45 results.
-constexpr int kLeafSize = 12;
+/// Upper bound of the per-thread result reservation (in hits, 16 bytes each).
+constexpr double kMaxReserveHits = 64.0 * 1024 * 1024;
+
+/// Capacity of a thread's hit store kept between calls (in hits, 16 bytes each): 1M hits holds a
+/// thread's share of a few 10k-query chunks of ~45 results.
+constexpr std::size_t kRetainHits = std::size_t{1} << 20;
+
+/// Leaf size of the k-d tree: for radius queries of ~45 results, 24–64 measured ~10% faster than
+/// FLANN's default of 10, and larger leaves cost small-radius and k = 1 queries more.
+constexpr int kLeafSize = 24;
 
 /// Relative slack on squared bounds handed to FLANN. FLANN prunes and filters on squared distances
 /// (‖p − q‖² < bound) while we decide on the rounded Euclidean distance; the slack makes sure no
@@ -133,6 +143,14 @@ int maxThreads() noexcept {
 #endif
 }
 
+int teamSize() noexcept {
+#ifdef _OPENMP
+  return omp_get_num_threads();
+#else
+  return 1;
+#endif
+}
+
 int threadId() noexcept {
 #ifdef _OPENMP
   return omp_get_thread_num();
@@ -142,7 +160,7 @@ int threadId() noexcept {
 }
 
 /// Sorts one query's hits by (distance, index). Lists are short (tens of entries), where an
-/// insertion sort beats std::sort by about 40% (fewer mispredicted branches); long ones use std::sort.
+/// insertion sort beats std::sort by ~40% (fewer mispredicted branches); long lists use std::sort.
 void sortHits(Hit* first, Hit* last) {
   if (last - first > 64) {
     std::sort(first, last, hitLess);
@@ -156,12 +174,68 @@ void sortHits(Hit* first, Hit* last) {
   }
 }
 
+/// A spatially coherent processing order of the queries: indices sorted by the Morton code of
+/// their cell in a 1024³ grid over the queries' bounding box (LSD radix sort, three 10-bit digits).
+/// Empty (meaning the input order) below minQueries queries or beyond 2^32 − 1 of them.
+std::vector<std::uint32_t> processingOrder(const Points& queries, std::int64_t minQueries) {
+  const auto q = static_cast<std::int64_t>(queries.rows());
+  if (q < minQueries || q > std::numeric_limits<std::uint32_t>::max()) return {};
+  const Eigen::RowVector3d lo = queries.colwise().minCoeff();
+  const Eigen::RowVector3d extent = queries.colwise().maxCoeff() - lo;
+  double scale[3];
+  for (int c = 0; c < 3; ++c) scale[c] = extent[c] > 0.0 ? 1023.0 / extent[c] : 0.0;
+
+  // Spreads the 10 low bits of v to every third bit.
+  const auto spread = [](std::uint32_t v) {
+    v = (v | (v << 16)) & 0x030000FFu;
+    v = (v | (v << 8)) & 0x0300F00Fu;
+    v = (v | (v << 4)) & 0x030C30C3u;
+    v = (v | (v << 2)) & 0x09249249u;
+    return v;
+  };
+  std::vector<std::uint32_t> key(static_cast<std::size_t>(q));
+  const double* p = queries.data();
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < q; ++i) {
+    std::uint32_t code = 0;
+    for (int c = 0; c < 3; ++c) {
+      const double x = (p[3 * i + c] - lo[c]) * scale[c];
+      code |= spread(static_cast<std::uint32_t>(std::min(1023.0, std::max(0.0, x)))) << c;
+    }
+    key[static_cast<std::size_t>(i)] = code;
+  }
+
+  std::vector<std::uint32_t> order(static_cast<std::size_t>(q));
+  std::vector<std::uint32_t> next(static_cast<std::size_t>(q));
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<std::uint32_t>(i);
+  for (int shift = 0; shift < 30; shift += 10) {
+    std::vector<std::size_t> bucket(1025, 0);
+    for (std::uint32_t i : order) ++bucket[((key[i] >> shift) & 1023u) + 1];
+    for (std::size_t d = 1; d < bucket.size(); ++d) bucket[d] += bucket[d - 1];
+    for (std::uint32_t i : order) next[bucket[(key[i] >> shift) & 1023u]++] = i;
+    order.swap(next);
+  }
+  return order;
+}
+
+/// This thread's store of hits, reused across calls (see kRetainHits).
+std::vector<Hit>& threadStore() {
+  thread_local std::vector<Hit> store;
+  return store;
+}
+
 /// Records the first exception thrown inside an OpenMP region, to rethrow it outside.
 class ErrorSlot {
  public:
   void capture() noexcept {
 #pragma omp critical(duplexfit_neighbors_error)
     if (!error_) error_ = std::current_exception();
+  }
+  bool failed() const noexcept {
+    bool result = false;
+#pragma omp critical(duplexfit_neighbors_error)
+    result = static_cast<bool>(error_);
+    return result;
   }
   void rethrow() const {
     if (error_) std::rethrow_exception(error_);
@@ -178,8 +252,8 @@ struct NeighborIndex::Impl {
   std::size_t size = 0;
   std::unique_ptr<Tree> tree;  ///< null for an empty set
 
-  /// Runs searchOne(state, query, hits) for every query in parallel blocks, where each thread owns a
-  /// state from makeState() and searchOne appends the sorted hits of one query; returns the lists.
+  /// Runs searchOne(state, query, hits) for every query in parallel blocks and returns the lists;
+  /// each thread owns a state from makeState(), and searchOne appends one query's sorted hits.
   template <typename MakeState, typename SearchOne>
   NeighborLists run(const Points& queries, MakeState makeState, SearchOne searchOne) const;
 };
@@ -192,69 +266,107 @@ NeighborLists NeighborIndex::Impl::run(const Points& queries, MakeState makeStat
   out.offsets.assign(static_cast<std::size_t>(q) + 1, 0);
   if (q == 0 || size == 0) return out;
 
-  // Pass 1: blocks of queries are handed out dynamically; each thread appends the hits of its blocks
-  // to its own store (no per-block allocations) and the counts go to offsets[i + 1].
+  // Queries are searched in Morton order, so that consecutive queries walk the same part of the
+  // tree (at 3M points ~1.5x faster than an incoherent input order once the tree outgrows the
+  // cache); results are still returned in input order.
+  const std::vector<std::uint32_t> order = processingOrder(queries, 4 * kQueryBlock);
+  const auto queryAt = [&order](std::int64_t s) {
+    return order.empty() ? s : static_cast<std::int64_t>(order[static_cast<std::size_t>(s)]);
+  };
+
+  // One parallel region: pass 1 searches blocks of queries (in processing order, handed out
+  // dynamically), each thread appending hits to its own store and counts to offsets[i + 1]; one
+  // thread then sums the counts and sizes the output; pass 2 copies every query's hits from the
+  // store that holds them to their place in the flat arrays.
   const std::int64_t blocks = (q + kQueryBlock - 1) / kQueryBlock;
   struct BlockSource {
     int thread;
     std::size_t begin;
   };
   std::vector<BlockSource> source(static_cast<std::size_t>(blocks));
-  std::vector<std::vector<Hit>> stores(static_cast<std::size_t>(maxThreads()));
+  std::vector<const std::vector<Hit>*> stores(static_cast<std::size_t>(maxThreads()), nullptr);
   const double* qp = queries.data();
   ErrorSlot error;
 #pragma omp parallel
   {
     const int t = threadId();
-    std::vector<Hit>& hits = stores[static_cast<std::size_t>(t)];
-    auto state = makeState();
+    std::vector<Hit>& hits = threadStore();
+    hits.clear();
+    stores[static_cast<std::size_t>(t)] = &hits;
+    std::optional<decltype(makeState())> state;
+    try {
+      state.emplace(makeState());
+    } catch (...) {
+      error.capture();
+    }
 #pragma omp for schedule(dynamic, 1)
     for (std::int64_t b = 0; b < blocks; ++b) {
+      if (!state) continue;
       try {
         const bool firstBlock = hits.empty();
         source[static_cast<std::size_t>(b)] = BlockSource{t, hits.size()};
         const std::int64_t begin = b * kQueryBlock;
         const std::int64_t end = std::min(q, begin + kQueryBlock);
-        for (std::int64_t i = begin; i < end; ++i) {
+        for (std::int64_t s = begin; s < end; ++s) {
+          const std::int64_t i = queryAt(s);
           const std::size_t before = hits.size();
-          searchOne(state, qp + 3 * i, hits);
+          searchOne(*state, qp + 3 * i, hits);
           out.offsets[static_cast<std::size_t>(i) + 1] =
               static_cast<std::int64_t>(hits.size() - before);
         }
         if (firstBlock) {
-          // Reserve this thread's share once, extrapolated from its first block with a margin
-          // (avoids repeated reallocation; capacity that is never written stays virtual).
-          const double perQuery = static_cast<double>(hits.size()) / static_cast<double>(end - begin);
-          const double share = static_cast<double>(q) / static_cast<double>(maxThreads());
-          hits.reserve(static_cast<std::size_t>(1.25 * perQuery * share) + hits.size());
+          // Reserve this thread's share once, extrapolated from its first block with a margin and
+          // capped (avoids repeated reallocation; capacity that is never written stays virtual).
+          const double perQuery =
+              static_cast<double>(hits.size()) / static_cast<double>(end - begin);
+          const double share = static_cast<double>(q) / static_cast<double>(teamSize());
+          const double want = std::min(1.25 * perQuery * share, kMaxReserveHits);
+          hits.reserve(std::max(hits.size(), static_cast<std::size_t>(want)));
         }
       } catch (...) {
         error.capture();
       }
     }
+
+#pragma omp single
+    {
+      try {
+        if (!error.failed()) {
+          for (std::size_t i = 1; i < out.offsets.size(); ++i) out.offsets[i] += out.offsets[i - 1];
+          const auto total = static_cast<std::size_t>(out.offsets.back());
+          out.indices.resize(total);
+          out.distances.resize(total);
+        }
+      } catch (...) {
+        error.capture();
+      }
+    }
+
+    if (!error.failed()) {  // the same answer in every thread after the barrier of single
+#pragma omp for schedule(dynamic, 4)
+      for (std::int64_t b = 0; b < blocks; ++b) {
+        const BlockSource& src = source[static_cast<std::size_t>(b)];
+        const Hit* from = stores[static_cast<std::size_t>(src.thread)]->data() + src.begin;
+        const std::int64_t end = std::min(q, (b + 1) * kQueryBlock);
+        for (std::int64_t s = b * kQueryBlock; s < end; ++s) {
+          const auto i = static_cast<std::size_t>(queryAt(s));
+          const auto first = static_cast<std::size_t>(out.offsets[i]);
+          const auto count = static_cast<std::size_t>(out.offsets[i + 1]) - first;
+          Index* idx = out.indices.data() + first;
+          double* dist = out.distances.data() + first;
+          for (std::size_t j = 0; j < count; ++j) {
+            idx[j] = from[j].index;
+            dist[j] = from[j].distance;
+          }
+          from += count;
+        }
+      }
+    }
+    // Keep a moderate store for the next call (repeated chunked searches then reuse warm memory
+    // instead of faulting in fresh pages every time); give back anything larger.
+    if (hits.capacity() > kRetainHits) std::vector<Hit>().swap(hits);
   }
   error.rethrow();
-
-  for (std::size_t i = 1; i < out.offsets.size(); ++i) out.offsets[i] += out.offsets[i - 1];
-  const auto total = static_cast<std::size_t>(out.offsets.back());
-  out.indices.resize(total);
-  out.distances.resize(total);
-
-  // Pass 2: copy each block from its thread's store to its place in the flat arrays.
-#pragma omp parallel for schedule(dynamic, 4)
-  for (std::int64_t b = 0; b < blocks; ++b) {
-    const std::size_t first = static_cast<std::size_t>(out.offsets[static_cast<std::size_t>(b * kQueryBlock)]);
-    const std::size_t last =
-        static_cast<std::size_t>(out.offsets[static_cast<std::size_t>(std::min(q, (b + 1) * kQueryBlock))]);
-    const BlockSource& src = source[static_cast<std::size_t>(b)];
-    const Hit* hits = stores[static_cast<std::size_t>(src.thread)].data() + src.begin;
-    Index* idx = out.indices.data() + first;
-    double* dist = out.distances.data() + first;
-    for (std::size_t j = 0; j < last - first; ++j) {
-      idx[j] = hits[j].index;
-      dist[j] = hits[j].distance;
-    }
-  }
   return out;
 }
 

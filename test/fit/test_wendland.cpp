@@ -2,12 +2,13 @@
 // sanity checks of the generated test shapes and random SPD matrices (test/support/shapes.hpp).
 #include <doctest/doctest.h>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Dense>
 #include <cmath>
 #include <limits>
 #include <string>
-
-#include <Eigen/Cholesky>
-#include <Eigen/Dense>
+#include <utility>
+#include <vector>
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/wendland.hpp"
@@ -26,8 +27,8 @@ using duplexfit::testing::Shape;
 Eigen::MatrixXd toDense(const CsrMatrix& a) {
   Eigen::MatrixXd d = Eigen::MatrixXd::Zero(a.rows, a.cols);
   for (Index i = 0; i < a.rows; ++i) {
-    for (Index k = a.rowPtr[static_cast<std::size_t>(i)]; k < a.rowPtr[static_cast<std::size_t>(i) + 1];
-         ++k) {
+    for (Index k = a.rowPtr[static_cast<std::size_t>(i)];
+         k < a.rowPtr[static_cast<std::size_t>(i) + 1]; ++k) {
       d(i, a.colIdx[static_cast<std::size_t>(k)]) += a.values[static_cast<std::size_t>(k)];
     }
   }
@@ -91,10 +92,13 @@ TEST_SUITE("fit") {
   TEST_CASE("wendland: assembly equals a dense brute-force build on sphere level centres") {
     const double delta = 0.02;
     const int n = 200;
-    const double sigma = duplexfit::testing::sigmaForNonZeros(Shape::Sphere, n, delta, 30.0);
-    const LevelCentres level = duplexfit::testing::levelCentres(Shape::Sphere, n, delta, sigma);
-    for (double lambda : {0.0, 0.25}) {
+    // 30 non-zeros a row, and 100 (rows longer than the insertion-sort cut-off of the assembly).
+    for (const auto& [target, lambda] :
+         {std::pair{30.0, 0.0}, std::pair{30.0, 0.25}, std::pair{100.0, 0.0}}) {
+      CAPTURE(target);
       CAPTURE(lambda);
+      const double sigma = duplexfit::testing::sigmaForNonZeros(Shape::Sphere, n, delta, target);
+      const LevelCentres level = duplexfit::testing::levelCentres(Shape::Sphere, n, delta, sigma);
       const CsrMatrix a = duplexfit::assembleWendland(level.centres, sigma, lambda);
       REQUIRE(a.rows == 3 * n);
       REQUIRE(a.cols == 3 * n);
@@ -109,12 +113,13 @@ TEST_SUITE("fit") {
       CHECK(got.diagonal().isConstant(1.0 + lambda));
       // Same pattern row by row, allowing only entries that sit on the support boundary to differ.
       for (Index i = 0; i < a.rows; ++i) {
-        const Index count = a.rowPtr[static_cast<std::size_t>(i) + 1] - a.rowPtr[static_cast<std::size_t>(i)];
+        const Index count =
+            a.rowPtr[static_cast<std::size_t>(i) + 1] - a.rowPtr[static_cast<std::size_t>(i)];
         CHECK(std::abs(count - pattern.row(i).sum()) <= 1);
         REQUIRE(count >= 1);
         REQUIRE(count <= 3 * n);
       }
-      CHECK(meanRowNonZeros(a) == doctest::Approx(30.0).epsilon(0.2));
+      CHECK(meanRowNonZeros(a) == doctest::Approx(target).epsilon(0.2));
       if (lambda == 0.0) CHECK(Eigen::LLT<Eigen::MatrixXd>(got).info() == Eigen::Success);
     }
   }
@@ -197,7 +202,8 @@ TEST_SUITE("fit") {
     for (Eigen::Index i = 0; i < 500; ++i) {
       REQUIRE(level.centres.row(i) == sphere.row(i));
       REQUIRE(level.centres.row(500 + i).norm() == doctest::Approx(0.5 - delta).epsilon(1e-14));
-      REQUIRE(level.centres.row(1000 + i).norm() == doctest::Approx(0.5 + sigma / 10).epsilon(1e-14));
+      REQUIRE(level.centres.row(1000 + i).norm() ==
+              doctest::Approx(0.5 + sigma / 10).epsilon(1e-14));
     }
 
     const Points torus = duplexfit::testing::sampledTorus(800, 0.3, 0.15, &normals);

@@ -1,5 +1,6 @@
-// NeighborIndex against brute force (nanoflann's test pattern): radius and k-nearest queries on random
-// clouds with duplicates, lattice ties at the radius boundary, empty inputs and argument errors.
+// NeighborIndex against brute force (nanoflann's test pattern): radius and k-nearest queries on
+// random clouds with duplicates, lattice ties at the radius boundary, empty inputs and argument
+// errors.
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -49,8 +50,11 @@ NeighborLists bruteForce(const Points& points, const Points& queries, double rad
       const double d = distance(queries, i, points, j);
       if (d < radius) all.emplace_back(d, static_cast<Index>(j));
     }
+    if (k > 0 && all.size() > static_cast<std::size_t>(k)) {
+      std::nth_element(all.begin(), all.begin() + k, all.end());  // (distance, index) is a total order
+      all.resize(static_cast<std::size_t>(k));
+    }
     std::sort(all.begin(), all.end());
-    if (k > 0 && all.size() > static_cast<std::size_t>(k)) all.resize(static_cast<std::size_t>(k));
     for (const auto& [d, j] : all) {
       out.indices.push_back(j);
       out.distances.push_back(d);
@@ -126,12 +130,19 @@ TEST_SUITE("spatial") {
     }
   }
 
-  TEST_CASE("neighbors: radius search across many query blocks equals brute force") {
+  TEST_CASE("neighbors: radius and knn search across many query blocks equal brute force") {
     const Points points = randomPoints(2500, 3u);
     const NeighborIndex index(points);
     const NeighborLists got = index.radiusSearch(points, 0.1);
     requireSameLists(got, bruteForce(points, points, 0.1, 0));
     CHECK(got.indices.size() > 2500 * 5);
+    const double all = std::numeric_limits<double>::infinity();
+    requireSameLists(index.knnSearch(points, 10), bruteForce(points, points, all, 10));
+    // Repeated calls (which reuse per-thread buffers) give identical lists.
+    const NeighborLists again = index.radiusSearch(points, 0.1);
+    CHECK(again.offsets == got.offsets);
+    CHECK(again.indices == got.indices);
+    CHECK(again.distances == got.distances);
   }
 
   TEST_CASE("neighbors: radius is strict and ties sort by index on a lattice") {

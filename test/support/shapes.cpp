@@ -47,7 +47,8 @@ double surfaceArea(Shape shape) {
                                 : 4.0 * kPi * kPi * kTorusMajor * kTorusMinor;
 }
 
-/// Signed offsets along the outward normal of the three centre kinds (surface, offset, off-surface).
+/// Signed offsets along the outward normal of the three centre kinds (surface, offset,
+/// off-surface).
 std::array<double, 3> layerOffsets(double delta, double sigma) {
   return {0.0, -delta, sigma / 10.0};
 }
@@ -66,10 +67,11 @@ double flatMeanNonZeros(double density, double delta, double sigma) {
   return density * kPi * sum / 3.0;
 }
 
-/// For sampled rows of levelCentres(shape, n, delta, σ), the support radius at which each (row, column)
-/// pair enters the matrix. A pair of centres p + a·n_p and q + b·n_q (a, b ∈ {0, −δ, σ/10}) is a
-/// non-zero iff ‖v + σw‖ < σ, with v, w independent of σ and ‖w‖ ≤ 0.2: that holds exactly for σ above
-/// one threshold, so the mean row count at σ is the number of thresholds below σ per sampled row.
+/// For sampled rows of levelCentres(shape, n, delta, σ), the support radius at which each (row,
+/// column) pair enters the matrix. A pair of centres p + a·n_p and q + b·n_q (a, b ∈ {0, −δ, σ/10})
+/// is a non-zero iff ‖v + σw‖ < σ, with v, w independent of σ and ‖w‖ ≤ 0.2: that holds exactly for
+/// σ above one threshold, so the mean row count at σ is the number of thresholds below σ per
+/// sampled row.
 class PairThresholds {
  public:
   PairThresholds(Shape shape, int n, double delta) : delta_(delta) {
@@ -214,10 +216,12 @@ double sigmaForNonZeros(Shape shape, int n, double delta, double nnzPerRow) {
   }
   const double guess = hi;
 
-  // Refine against the exact entry thresholds of sampled rows (curvature, layers, edges of the torus):
-  // the wanted σ lies between the k-th and (k+1)-th smallest threshold, k = nnzPerRow × sampled rows.
+  // Refine against the exact entry thresholds of sampled rows (curvature, layers, edges of the
+  // torus): the wanted σ lies between the k-th and (k+1)-th smallest threshold, k = nnzPerRow ×
+  // sampled rows.
   const PairThresholds pairs(shape, n, delta);
-  const auto k = static_cast<std::size_t>(std::llround(nnzPerRow * static_cast<double>(pairs.sampledRows())));
+  const auto k =
+      static_cast<std::size_t>(std::llround(nnzPerRow * static_cast<double>(pairs.sampledRows())));
   double maxSigma = 2.0 * guess;
   for (;;) {
     bool complete = false;
@@ -259,8 +263,9 @@ CsrMatrix randomSpdMatrix(int n, int nnzPerRow, std::uint32_t seed) {
     }
   }
 
-  // Counting sort by row (stable), then a stable sort by column inside each row; duplicates are summed
-  // in generation order, which is the same for (i, j) and (j, i), so the matrix is exactly symmetric.
+  // Counting sort by row (stable), then a stable sort by column inside each row; duplicates are
+  // summed in generation order, which is the same for (i, j) and (j, i), so the matrix is exactly
+  // symmetric.
   std::vector<std::size_t> start(static_cast<std::size_t>(n) + 1, 0);
   for (const Triplet& t : pairs) ++start[static_cast<std::size_t>(t.row) + 1];
   for (std::size_t i = 1; i < start.size(); ++i) start[i] += start[i - 1];
@@ -274,8 +279,10 @@ CsrMatrix randomSpdMatrix(int n, int nnzPerRow, std::uint32_t seed) {
   a.colIdx.reserve(byRow.size() + static_cast<std::size_t>(n));
   a.values.reserve(byRow.size() + static_cast<std::size_t>(n));
   for (int i = 0; i < n; ++i) {
-    const auto first = byRow.begin() + static_cast<std::ptrdiff_t>(start[static_cast<std::size_t>(i)]);
-    const auto last = byRow.begin() + static_cast<std::ptrdiff_t>(start[static_cast<std::size_t>(i) + 1]);
+    const auto first =
+        byRow.begin() + static_cast<std::ptrdiff_t>(start[static_cast<std::size_t>(i)]);
+    const auto last =
+        byRow.begin() + static_cast<std::ptrdiff_t>(start[static_cast<std::size_t>(i) + 1]);
     std::stable_sort(first, last, [](const Triplet& x, const Triplet& y) { return x.col < y.col; });
     double absSum = 0.0;
     bool diagonalPlaced = false;

@@ -1,0 +1,95 @@
+// Duplex fitting (algorithm.md §1–§5, §8.1): an oriented point cloud in, ONE multi-level CSRBF field out
+// whose 0-level set is the surface and whose δ-level sets are the requested offset surfaces.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "duplexfit/device.hpp"
+#include "duplexfit/field.hpp"
+#include "duplexfit/linalg.hpp"
+#include "duplexfit/point_set.hpp"
+
+namespace duplexfit {
+
+/// Fit parameters. Every field documents its unit and default; defaults follow algorithm.md.
+struct FitOptions {
+  /// Signed offsets δ in input units (or fractions of the bounding box's largest side when offsetsRelative):
+  /// δ > 0 inward (hollowing), δ < 0 outward. Each must be non-zero and smaller than that largest side.
+  std::vector<double> offsets;
+  bool offsetsRelative = false;
+  /// The input normals already point into the solid (otherwise they are flipped, algorithm.md §1).
+  bool normalsInward = false;
+  /// η of the offset validity test: keep q = p + δν when no other point is closer than |δ|(1 − η) (§3.1).
+  double validityTolerance = 1e-2;
+  /// M, the number of levels; 0: from σ_1/σ_0 (§4.6).
+  int levels = 0;
+  /// α in σ_1 = α·L (L the bounding-box diagonal, §4.4).
+  double alpha = 0.75;
+  /// s in λ_k = s·k (approximation mode for noisy data, §5); 0 interpolates.
+  double smoothing = 0.0;
+  /// ε_fit: stop before level k ≥ 2 when max |t_i − f_{k−1}(c_i)| ≤ ε_fit (normalised units); 0: off.
+  double fitTolerance = 0.0;
+  /// Points with a zero normal: false keeps them as f = 0 constraints without companions (§3.3).
+  bool dropZeroNormalPoints = false;
+  /// Arithmetic of the device solves and field evaluations.
+  Precision precision = Precision::Float;
+  SolverOptions solver{};
+};
+
+/// One hierarchy level's counts, solver outcome and stage times.
+struct LevelReport {
+  int level = 0;                      ///< k, 1 = coarsest
+  double sigma = 0.0;                 ///< σ_k, input units
+  std::size_t surfacePoints = 0;      ///< |P^k|
+  std::vector<std::size_t> offsetCandidates, offsetKept;  ///< per offset: candidates and valid points
+  std::size_t offSurfaceCandidates = 0, offSurfaceKept = 0;
+  std::size_t mergedCentres = 0;      ///< centres dropped as duplicates (closer than 1e-6 σ_k)
+  std::size_t centres = 0;            ///< N_k after merging
+  std::size_t nonZeros = 0;
+  double maxResidualBefore = 0.0;     ///< max |t_i − f_{k−1}(c_i)| before the solve (input units)
+  SolveStats solve;
+  double secondsConstraints = 0.0, secondsAssembly = 0.0, secondsSolve = 0.0, secondsResidual = 0.0;
+};
+
+/// The whole fit: parameters actually used, per-level reports, errors (§8.1) and totals.
+struct FitReport {
+  std::string device;
+  std::string precision;
+  std::size_t inputPoints = 0, duplicatesMerged = 0, zeroNormals = 0;
+  std::vector<double> offsets;         ///< δ in input units
+  std::string offSurfaceSide;          ///< "outside", "inside" or "none (offsets on both sides)"
+  double sigma0 = 0.0, sigma1 = 0.0;   ///< input units
+  int levels = 0;                      ///< M
+  bool stoppedEarly = false;           ///< the ε_fit test ended the fit before level M
+  std::vector<LevelReport> levelReports;
+  double e0 = 0.0;                     ///< max |f(p)| over the input points (input units)
+  std::vector<double> eDelta;          ///< per offset: max |f(q) − δ| over the valid finest-level offset points
+  double secondsHierarchy = 0.0, secondsTotal = 0.0;
+};
+
+struct FitResult {
+  ImplicitField field;
+  FitReport report;
+};
+
+/// A progress event: stage ("hierarchy", "constraints", "assembly", "solve", "residual", "errors"),
+/// level (0 outside levels), and CG iteration/residual during solves.
+struct FitProgress {
+  std::string stage;
+  int level = 0;
+  int levels = 0;
+  int iteration = 0;
+  double residual = 0.0;
+  std::string message;
+};
+/// Return false to cancel: fit() then throws Cancelled.
+using FitProgressCallback = std::function<bool(const FitProgress&)>;
+
+/// Fits the field. Points are used as given (merge duplicates first, e.g. PointSet::mergeDuplicates).
+/// @throws InvalidArgument (too few/degenerate points, bad options naming the field), DeviceError, Cancelled.
+FitResult fit(const Device& device, const PointSet& points, const FitOptions& options = {},
+              const FitProgressCallback& progress = {});
+
+}  // namespace duplexfit

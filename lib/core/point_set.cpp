@@ -1,0 +1,202 @@
+// PointSet: validation and normalisation of oriented point clouds, duplicate merging (a hash over
+// rounded positions, algorithm.md §3.5) and the fittability checks run before a fit.
+#include "duplexfit/point_set.hpp"
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+
+#include "duplexfit/error.hpp"
+
+namespace duplexfit {
+
+namespace {
+
+/// Normals at most this long count as "no normal" (point_set.hpp).
+constexpr double kZeroNormalLength = 1e-12;
+
+/// Key of a (rounded) position: three 64-bit words, either bit patterns or cell indices.
+struct PositionKey {
+  std::uint64_t a, b, c;
+  bool operator==(const PositionKey& o) const noexcept { return a == o.a && b == o.b && c == o.c; }
+};
+
+/// A fixed (seedless) mix, so merging is deterministic from run to run.
+struct PositionKeyHash {
+  static std::uint64_t mix(std::uint64_t x) noexcept {
+    x ^= x >> 33;
+    x *= 0xff51afd7ed558ccdULL;
+    x ^= x >> 33;
+    x *= 0xc4ceb9fe1a85ec53ULL;
+    x ^= x >> 33;
+    return x;
+  }
+  std::size_t operator()(const PositionKey& k) const noexcept {
+    return static_cast<std::size_t>(mix(k.a ^ mix(k.b ^ mix(k.c))));
+  }
+};
+
+std::uint64_t bitsOf(double v) {
+  if (v == 0.0) v = 0.0;  // −0 and +0 are the same position
+  std::uint64_t bits = 0;
+  std::memcpy(&bits, &v, sizeof bits);
+  return bits;
+}
+
+std::string describePoint(const Points& p, Eigen::Index i) {
+  return "(" + std::to_string(p(i, 0)) + ", " + std::to_string(p(i, 1)) + ", " +
+         std::to_string(p(i, 2)) + ")";
+}
+
+}  // namespace
+
+PointSet::PointSet(Points positions, Points normals)
+    : positions_(std::move(positions)), normals_(std::move(normals)) {
+  if (positions_.rows() != normals_.rows()) {
+    throw InvalidArgument("PointSet: " + std::to_string(positions_.rows()) + " positions but " +
+                          std::to_string(normals_.rows()) + " normals");
+  }
+  for (Eigen::Index i = 0; i < positions_.rows(); ++i) {
+    if (!positions_.row(i).allFinite()) {
+      throw InvalidArgument("PointSet: position of point " + std::to_string(i) +
+                            " is not finite");
+    }
+    if (!normals_.row(i).allFinite()) {
+      throw InvalidArgument("PointSet: normal of point " + std::to_string(i) + " is not finite");
+    }
+    const double length = normals_.row(i).norm();
+    if (length <= kZeroNormalLength) {
+      normals_.row(i).setZero();
+    } else {
+      normals_.row(i) /= length;
+    }
+  }
+}
+
+Eigen::AlignedBox3d PointSet::bounds() const {
+  Eigen::AlignedBox3d box;  // default-constructed: empty
+  for (Eigen::Index i = 0; i < positions_.rows(); ++i) {
+    box.extend(Eigen::Vector3d(positions_.row(i).transpose()));
+  }
+  return box;
+}
+
+std::size_t PointSet::zeroNormals() const {
+  std::size_t count = 0;
+  for (Eigen::Index i = 0; i < normals_.rows(); ++i) {
+    if (normals_(i, 0) == 0.0 && normals_(i, 1) == 0.0 && normals_(i, 2) == 0.0) ++count;
+  }
+  return count;
+}
+
+std::size_t PointSet::mergeDuplicates(double relativeTolerance) {
+  if (!(relativeTolerance >= 0.0) || !std::isfinite(relativeTolerance)) {
+    throw InvalidArgument("mergeDuplicates: relativeTolerance must be finite and >= 0, got " +
+                          std::to_string(relativeTolerance));
+  }
+  const Eigen::Index n = positions_.rows();
+  if (n < 2) return 0;
+
+  // Rounding to cells of size h = tolerance·L, measured from the box minimum. When h is zero or so
+  // small that cell indices would not fit in 53 bits, the comparison is exact (bit patterns).
+  const Eigen::AlignedBox3d box = bounds();
+  const double h = relativeTolerance * box.diagonal().norm();
+  const double maxExtent = box.diagonal().maxCoeff();
+  const bool exact = !(h > 0.0) || maxExtent / h > 4.0e15;
+  auto keyOf = [&](Eigen::Index i) {
+    if (exact) {
+      return PositionKey{bitsOf(positions_(i, 0)), bitsOf(positions_(i, 1)),
+                         bitsOf(positions_(i, 2))};
+    }
+    auto cell = [&](int axis) {
+      const double c = std::round((positions_(i, axis) - box.min()(axis)) / h);
+      return static_cast<std::uint64_t>(static_cast<std::int64_t>(c));
+    };
+    return PositionKey{cell(0), cell(1), cell(2)};
+  };
+
+  std::unordered_map<PositionKey, Eigen::Index, PositionKeyHash> first;
+  first.reserve(static_cast<std::size_t>(n));
+  std::vector<Eigen::Index> groupOf(static_cast<std::size_t>(n));
+  std::vector<Eigen::Index> groupSize;
+  groupSize.reserve(static_cast<std::size_t>(n));
+  Eigen::Index groups = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const auto [it, inserted] = first.emplace(keyOf(i), groups);
+    if (inserted) {
+      groupSize.push_back(0);
+      ++groups;
+    }
+    groupOf[static_cast<std::size_t>(i)] = it->second;
+    ++groupSize[static_cast<std::size_t>(it->second)];
+  }
+  if (groups == n) return 0;
+
+  // Each group keeps its first point's position; normals are summed and renormalised, and become
+  // zero when they cancel (‖Σν‖ ≤ 10⁻⁶·count, the zero test of algorithm.md §3.3).
+  Points positions(groups, 3);
+  Points normals = Points::Zero(groups, 3);
+  std::vector<bool> seen(static_cast<std::size_t>(groups), false);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const Eigen::Index g = groupOf[static_cast<std::size_t>(i)];
+    if (!seen[static_cast<std::size_t>(g)]) {
+      seen[static_cast<std::size_t>(g)] = true;
+      positions.row(g) = positions_.row(i);
+    }
+    normals.row(g) += normals_.row(i);
+  }
+  for (Eigen::Index g = 0; g < groups; ++g) {
+    const double count = static_cast<double>(groupSize[static_cast<std::size_t>(g)]);
+    const double length = normals.row(g).norm();
+    if (count > 1.0 && length <= 1e-6 * count) {
+      normals.row(g).setZero();
+    } else if (length > kZeroNormalLength) {
+      normals.row(g) /= length;
+    } else {
+      normals.row(g).setZero();
+    }
+  }
+  positions_ = std::move(positions);
+  normals_ = std::move(normals);
+  return static_cast<std::size_t>(n - groups);
+}
+
+void PointSet::flipNormals() { normals_ = -normals_; }
+
+void checkFittable(const PointSet& points, const std::string& source) {
+  const std::size_t n = points.size();
+  if (n < 10) {
+    throw InvalidArgument(source + ": only " + std::to_string(n) + " point" +
+                          (n == 1 ? "" : "s") + "; fitting needs at least 10");
+  }
+  const Points& p = points.positions();
+  const Eigen::AlignedBox3d box = points.bounds();
+  const double diagonal = box.diagonal().norm();
+  const double magnitude = std::max(box.min().cwiseAbs().maxCoeff(), box.max().cwiseAbs().maxCoeff());
+  // Coincident: no extent at all, or an extent below what doubles can resolve at that magnitude.
+  if (!(diagonal > 1e-12 * magnitude)) {
+    throw InvalidArgument(source + ": all " + std::to_string(n) +
+                          " points are at the same position " + describePoint(p, 0) +
+                          "; fitting needs a surface");
+  }
+  // Collinear: the second-largest covariance eigenvalue (a variance) is negligible against L².
+  const Eigen::RowVector3d mean = p.colwise().mean();
+  const Points centred = p.rowwise() - mean;
+  const Eigen::Matrix3d covariance = centred.transpose() * centred / static_cast<double>(n);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(covariance, Eigen::EigenvaluesOnly);
+  if (eigen.eigenvalues()(1) <= 1e-10 * diagonal * diagonal) {
+    throw InvalidArgument(source + ": all " + std::to_string(n) +
+                          " points lie on one line; fitting needs a surface");
+  }
+  if (points.zeroNormals() == n) {
+    throw InvalidArgument(source + ": all " + std::to_string(n) +
+                          " normals are zero; fitting needs oriented normals");
+  }
+}
+
+}  // namespace duplexfit

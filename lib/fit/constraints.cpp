@@ -1,0 +1,135 @@
+// Offset and off-surface points with the validity test of algorithm.md §3.1–§3.2, and the merge of
+// near-duplicate centres (§3.5), using the FLANN-backed NeighborIndex.
+#include "fit/constraints.hpp"
+
+#include <cmath>
+
+#include "duplexfit/neighbors.hpp"
+
+namespace duplexfit::detail {
+
+namespace {
+
+// Candidates p_i + step·ν_i for points with a non-zero normal, kept when the nearest point of P other
+// than p_i is at least |step|(1 − η) away. Returns the kept candidates and their source indices.
+Points validCompanions(const Points& points, const Points& normals, const NeighborIndex& index, double step,
+                       double eta, std::size_t& candidates) {
+  std::vector<Eigen::Index> source;
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    if (normals.row(i).squaredNorm() > 0.0) source.push_back(i);
+  }
+  candidates = source.size();
+  Points q(static_cast<Eigen::Index>(source.size()), 3);
+  for (std::size_t k = 0; k < source.size(); ++k) {
+    const Eigen::Index i = source[k];
+    q.row(static_cast<Eigen::Index>(k)) = points.row(i) + step * normals.row(i);
+  }
+  const NeighborLists nn = index.knnSearch(q, 2);
+  const double limit = std::abs(step) * (1.0 - eta);
+  std::vector<char> keep(source.size(), 0);
+  std::size_t kept = 0;
+  for (std::size_t k = 0; k < source.size(); ++k) {
+    double nearestOther = std::numeric_limits<double>::infinity();
+    for (auto e = nn.offsets[k]; e < nn.offsets[k + 1]; ++e) {
+      if (nn.indices[static_cast<std::size_t>(e)] != source[k]) {
+        nearestOther = nn.distances[static_cast<std::size_t>(e)];
+        break;
+      }
+    }
+    keep[k] = nearestOther >= limit ? 1 : 0;
+    kept += static_cast<std::size_t>(keep[k]);
+  }
+  Points out(static_cast<Eigen::Index>(kept), 3);
+  Eigen::Index r = 0;
+  for (std::size_t k = 0; k < source.size(); ++k) {
+    if (keep[k] != 0) out.row(r++) = q.row(static_cast<Eigen::Index>(k));
+  }
+  return out;
+}
+
+}  // namespace
+
+LevelConstraints buildConstraints(const Points& points, const Points& normals, const ConstraintOptions& options) {
+  LevelConstraints out;
+  // Surface points (zero-normal ones only if kept).
+  std::vector<Eigen::Index> surfaceRows;
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    if (!options.dropZeroNormalPoints || normals.row(i).squaredNorm() > 0.0) surfaceRows.push_back(i);
+  }
+  const NeighborIndex index(points);
+
+  std::vector<Points> blocks;
+  std::vector<double> blockTargets;
+  Points surface(static_cast<Eigen::Index>(surfaceRows.size()), 3);
+  for (std::size_t k = 0; k < surfaceRows.size(); ++k) surface.row(static_cast<Eigen::Index>(k)) = points.row(surfaceRows[k]);
+  blocks.push_back(std::move(surface));
+  blockTargets.push_back(0.0);
+  out.surface = surfaceRows.size();
+
+  for (const double delta : options.offsets) {
+    std::size_t candidates = 0;
+    blocks.push_back(validCompanions(points, normals, index, delta, options.validityTolerance, candidates));
+    blockTargets.push_back(delta);
+    out.offsetCandidates.push_back(candidates);
+    out.offsetKept.push_back(static_cast<std::size_t>(blocks.back().rows()));
+  }
+  const double d = options.offSurfaceDistance;
+  std::vector<int> sides;
+  if (options.offSurfaceSide == 2) sides = {-1, 1};
+  else if (options.offSurfaceSide != 0) sides = {options.offSurfaceSide};
+  for (const int side : sides) {
+    std::size_t candidates = 0;
+    blocks.push_back(validCompanions(points, normals, index, side * d, options.validityTolerance, candidates));
+    blockTargets.push_back(side * d);
+    out.offSurfaceCandidates += candidates;
+    out.offSurfaceKept += static_cast<std::size_t>(blocks.back().rows());
+  }
+
+  // Stack in priority order (surface, offsets, off-surface), then drop centres that lie within the merge
+  // distance of an earlier kept one.
+  Eigen::Index total = 0;
+  for (const Points& b : blocks) total += b.rows();
+  Points all(total, 3);
+  Eigen::VectorXd targets(total);
+  std::vector<int> blockOf(static_cast<std::size_t>(total));
+  Eigen::Index row = 0;
+  for (std::size_t b = 0; b < blocks.size(); ++b) {
+    all.middleRows(row, blocks[b].rows()) = blocks[b];
+    targets.segment(row, blocks[b].rows()).setConstant(blockTargets[b]);
+    for (Eigen::Index i = 0; i < blocks[b].rows(); ++i) blockOf[static_cast<std::size_t>(row + i)] = static_cast<int>(b);
+    row += blocks[b].rows();
+  }
+  std::vector<char> keep(static_cast<std::size_t>(total), 1);
+  if (options.mergeDistance > 0.0 && total > 0) {
+    const NeighborIndex allIndex(all);
+    const NeighborLists close = allIndex.radiusSearch(all, options.mergeDistance);
+    for (Eigen::Index i = 0; i < total; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      for (auto e = close.offsets[ui]; e < close.offsets[ui + 1]; ++e) {
+        const Index j = close.indices[static_cast<std::size_t>(e)];
+        if (j < i && keep[static_cast<std::size_t>(j)] != 0) {
+          keep[ui] = 0;
+          break;
+        }
+      }
+    }
+  }
+  Eigen::Index kept = 0;
+  for (char k : keep) kept += k;
+  out.merged = static_cast<std::size_t>(total - kept);
+  out.centres.resize(kept, 3);
+  out.targets.resize(kept);
+  out.offsetRows.assign(options.offsets.size(), {});
+  Eigen::Index r = 0;
+  for (Eigen::Index i = 0; i < total; ++i) {
+    if (keep[static_cast<std::size_t>(i)] == 0) continue;
+    out.centres.row(r) = all.row(i);
+    out.targets[r] = targets[i];
+    const int b = blockOf[static_cast<std::size_t>(i)];
+    if (b >= 1 && b <= static_cast<int>(options.offsets.size())) out.offsetRows[static_cast<std::size_t>(b - 1)].push_back(r);
+    ++r;
+  }
+  return out;
+}
+
+}  // namespace duplexfit::detail

@@ -1,0 +1,37 @@
+// The centres of one level (algorithm.md §3): surface points (target 0), offset points q = p + δν kept by
+// the validity test (target δ), off-surface points (target ±d_k), merged where closer than 1e-6 σ_k.
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "duplexfit/types.hpp"
+
+namespace duplexfit::detail {
+
+struct ConstraintOptions {
+  std::vector<double> offsets;  ///< signed δ, normalised units, δ > 0 along ν (inward)
+  double offSurfaceDistance = 0.0;  ///< d_k = σ_k/10
+  /// +1: off-surface points along +ν (inside), −1: along −ν (outside), 0: none, 2: both sides
+  int offSurfaceSide = -1;
+  double validityTolerance = 1e-2;  ///< η
+  double mergeDistance = 0.0;       ///< 1e-6 σ_k
+  bool dropZeroNormalPoints = false;
+};
+
+struct LevelConstraints {
+  Points centres;
+  Eigen::VectorXd targets;
+  std::size_t surface = 0;
+  std::vector<std::size_t> offsetCandidates, offsetKept;
+  std::size_t offSurfaceCandidates = 0, offSurfaceKept = 0;
+  std::size_t merged = 0;
+  /// Rows of `centres` that are valid offset points of offset j (for E_δ), per offset.
+  std::vector<std::vector<Eigen::Index>> offsetRows;
+};
+
+/// Builds the level's centres from its points P^k and inward normals ν (unit or zero).
+LevelConstraints buildConstraints(const Points& points, const Points& normals, const ConstraintOptions& options);
+
+}  // namespace duplexfit::detail

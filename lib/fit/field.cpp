@@ -1,0 +1,292 @@
+// ImplicitField: reference (brute-force) evaluation of f, ∇f, Hessian, and the versioned binary file
+// format (docs/field-format.md): little-endian, FNV-1a 64 checksum over everything before it.
+#include "duplexfit/field.hpp"
+
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <istream>
+#include <ostream>
+#include <sstream>
+
+#include <unistd.h>
+
+#include "duplexfit/error.hpp"
+
+namespace duplexfit {
+
+namespace {
+
+constexpr char kMagic[8] = {'D', 'P', 'X', 'F', 'I', 'E', 'L', 'D'};
+constexpr std::uint32_t kVersion = 1;
+
+// Contribution of one centre at offset u = x − c (normalised units) to f, ∇f and H (algorithm.md §6).
+struct Accumulator {
+  double f = 0.0;
+  Eigen::Vector3d g = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
+  void add(const Eigen::Vector3d& u, double w, double sigma, int order) {
+    const double d2 = u.squaredNorm();
+    if (d2 >= sigma * sigma) return;
+    const double rho = std::sqrt(d2);
+    const double r = rho / sigma;
+    const double t = 1.0 - r;
+    const double t2 = t * t;
+    f += w * t2 * t2 * (4.0 * r + 1.0);
+    if (order >= 1) g += -w * 20.0 / (sigma * sigma) * t2 * t * u;
+    if (order >= 2) {
+      const double a = w * 20.0 / (sigma * sigma) * t2;
+      const double c = rho > 0.0 ? 3.0 * r / d2 : 0.0;
+      h += a * (c * u * u.transpose() - t * Eigen::Matrix3d::Identity());
+    }
+  }
+};
+
+Accumulator accumulate(const ImplicitField& field, const Eigen::Vector3d& x, int order) {
+  const Normalization& n = field.normalization();
+  const Eigen::Vector3d u = n.scale * (x - n.centre);
+  Accumulator acc;
+  acc.f = field.f0();
+  for (const FieldLevel& level : field.levels()) {
+    for (Eigen::Index j = 0; j < level.centres.rows(); ++j) {
+      acc.add(u - level.centres.row(j).transpose(), level.weights[j], level.sigma, order);
+    }
+  }
+  return acc;
+}
+
+// Little-endian binary writer/reader with a running FNV-1a 64 checksum.
+class Writer {
+ public:
+  explicit Writer(std::ostream& out) : out_(out) {}
+  void bytes(const void* p, std::size_t n) {
+    const auto* b = static_cast<const unsigned char*>(p);
+    for (std::size_t i = 0; i < n; ++i) hash_ = (hash_ ^ b[i]) * 1099511628211ull;
+    out_.write(static_cast<const char*>(p), static_cast<std::streamsize>(n));
+  }
+  void u32(std::uint32_t v) {
+    unsigned char b[4];
+    for (int i = 0; i < 4; ++i) b[i] = static_cast<unsigned char>(v >> (8 * i));
+    bytes(b, 4);
+  }
+  void u64(std::uint64_t v) {
+    unsigned char b[8];
+    for (int i = 0; i < 8; ++i) b[i] = static_cast<unsigned char>(v >> (8 * i));
+    bytes(b, 8);
+  }
+  void f64(double v) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &v, 8);
+    u64(bits);
+  }
+  std::uint64_t hash() const { return hash_; }
+
+ private:
+  std::ostream& out_;
+  std::uint64_t hash_ = 1469598103934665603ull;
+};
+
+class Reader {
+ public:
+  Reader(std::istream& in, std::string source) : in_(in), source_(std::move(source)) {}
+  void bytes(void* p, std::size_t n, const char* what) {
+    in_.read(static_cast<char*>(p), static_cast<std::streamsize>(n));
+    if (static_cast<std::size_t>(in_.gcount()) != n) {
+      throw IoError(source_ + ": truncated field file: cannot read " + what + " at byte " + std::to_string(offset_));
+    }
+    const auto* b = static_cast<const unsigned char*>(p);
+    for (std::size_t i = 0; i < n; ++i) hash_ = (hash_ ^ b[i]) * 1099511628211ull;
+    offset_ += n;
+  }
+  std::uint32_t u32(const char* what) {
+    unsigned char b[4];
+    bytes(b, 4, what);
+    std::uint32_t v = 0;
+    for (int i = 0; i < 4; ++i) v |= static_cast<std::uint32_t>(b[i]) << (8 * i);
+    return v;
+  }
+  std::uint64_t u64(const char* what) {
+    unsigned char b[8];
+    bytes(b, 8, what);
+    std::uint64_t v = 0;
+    for (int i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(b[i]) << (8 * i);
+    return v;
+  }
+  double f64(const char* what) {
+    const std::uint64_t bits = u64(what);
+    double v;
+    std::memcpy(&v, &bits, 8);
+    if (!std::isfinite(v)) fail(std::string(what) + " is not finite");
+    return v;
+  }
+  [[noreturn]] void fail(const std::string& what) const {
+    throw IoError(source_ + ": corrupt field file: " + what + " (byte " + std::to_string(offset_) + ")");
+  }
+  std::uint64_t hash() const { return hash_; }
+  std::size_t offset() const { return offset_; }
+
+ private:
+  std::istream& in_;
+  std::string source_;
+  std::uint64_t hash_ = 1469598103934665603ull;
+  std::size_t offset_ = 0;
+};
+
+}  // namespace
+
+ImplicitField::ImplicitField(Normalization normalization, double f0, std::vector<FieldLevel> levels,
+                             std::vector<double> offsets, Eigen::AlignedBox3d worldBounds)
+    : normalization_(std::move(normalization)),
+      f0_(f0),
+      levels_(std::move(levels)),
+      offsets_(std::move(offsets)),
+      bounds_(worldBounds) {
+  if (!(normalization_.scale > 0.0) || !std::isfinite(normalization_.scale)) {
+    throw InvalidArgument("ImplicitField: the normalisation scale must be positive and finite");
+  }
+  for (std::size_t k = 0; k < levels_.size(); ++k) {
+    const FieldLevel& l = levels_[k];
+    if (!(l.sigma > 0.0) || l.centres.rows() != l.weights.size()) {
+      throw InvalidArgument("ImplicitField: level " + std::to_string(k + 1) +
+                            " needs sigma > 0 and one weight per centre");
+    }
+  }
+}
+
+std::size_t ImplicitField::centreCount() const noexcept {
+  std::size_t n = 0;
+  for (const FieldLevel& l : levels_) n += static_cast<std::size_t>(l.centres.rows());
+  return n;
+}
+
+double ImplicitField::value(const Eigen::Vector3d& x) const {
+  return accumulate(*this, x, 0).f / normalization_.scale;
+}
+
+Eigen::Vector3d ImplicitField::gradient(const Eigen::Vector3d& x) const {
+  return accumulate(*this, x, 1).g;  // d(f_n/s)/dx = (1/s)·∇_u f_n · s
+}
+
+Eigen::Matrix3d ImplicitField::hessian(const Eigen::Vector3d& x) const {
+  return accumulate(*this, x, 2).h * normalization_.scale;
+}
+
+FieldSamples ImplicitField::evaluate(const Device& device, const Points& queries, FieldDerivatives derivatives,
+                                     Precision precision) const {
+  return FieldEvaluator(device, *this, precision).evaluate(queries, derivatives);
+}
+
+void ImplicitField::save(std::ostream& out) const {
+  Writer w(out);
+  w.bytes(kMagic, sizeof kMagic);
+  w.u32(kVersion);
+  w.u32(0);  // flags, reserved
+  for (int i = 0; i < 3; ++i) w.f64(normalization_.centre[i]);
+  w.f64(normalization_.scale);
+  w.f64(f0_);
+  for (int i = 0; i < 3; ++i) w.f64(bounds_.min()[i]);
+  for (int i = 0; i < 3; ++i) w.f64(bounds_.max()[i]);
+  w.u32(static_cast<std::uint32_t>(offsets_.size()));
+  for (double d : offsets_) w.f64(d);
+  w.u32(static_cast<std::uint32_t>(levels_.size()));
+  for (const FieldLevel& l : levels_) {
+    w.f64(l.sigma);
+    w.u64(static_cast<std::uint64_t>(l.centres.rows()));
+    for (Eigen::Index j = 0; j < l.centres.rows(); ++j) {
+      w.f64(l.centres(j, 0));
+      w.f64(l.centres(j, 1));
+      w.f64(l.centres(j, 2));
+      w.f64(l.weights[j]);
+    }
+  }
+  const std::uint64_t h = w.hash();
+  w.u64(h);
+  if (!out) throw IoError("cannot write the field file (stream error)");
+}
+
+void ImplicitField::save(const std::string& path) const {
+  const std::string tmp = path + ".tmp-" + std::to_string(getpid());
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw IoError(path + ": cannot create the field file (is the folder writable?)");
+    try {
+      save(out);
+      out.flush();
+      if (!out) throw IoError(path + ": write failed");
+    } catch (...) {
+      out.close();
+      std::remove(tmp.c_str());
+      throw;
+    }
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw IoError(path + ": cannot move the finished field file into place");
+  }
+}
+
+ImplicitField ImplicitField::load(std::istream& in, const std::string& source) {
+  Reader r(in, source);
+  char magic[8];
+  r.bytes(magic, 8, "the magic number");
+  if (std::memcmp(magic, kMagic, 8) != 0) {
+    throw IoError(source + ": not a duplexfit field file (bad magic number)");
+  }
+  const std::uint32_t version = r.u32("the version");
+  if (version != kVersion) {
+    throw IoError(source + ": field file version " + std::to_string(version) + " is not supported (this build reads version " +
+                  std::to_string(kVersion) + ")");
+  }
+  (void)r.u32("the flags");
+  Normalization n;
+  for (int i = 0; i < 3; ++i) n.centre[i] = r.f64("the normalisation centre");
+  n.scale = r.f64("the normalisation scale");
+  if (!(n.scale > 0.0)) r.fail("the normalisation scale is not positive");
+  const double f0 = r.f64("f0");
+  Eigen::Vector3d lo, hi;
+  for (int i = 0; i < 3; ++i) lo[i] = r.f64("the bounding box");
+  for (int i = 0; i < 3; ++i) hi[i] = r.f64("the bounding box");
+  const std::uint32_t nOffsets = r.u32("the offset count");
+  if (nOffsets > 4096) r.fail("implausible offset count " + std::to_string(nOffsets));
+  std::vector<double> offsets(nOffsets);
+  for (double& d : offsets) d = r.f64("an offset");
+  const std::uint32_t nLevels = r.u32("the level count");
+  if (nLevels > 64) r.fail("implausible level count " + std::to_string(nLevels));
+  std::vector<FieldLevel> levels(nLevels);
+  for (std::uint32_t k = 0; k < nLevels; ++k) {
+    FieldLevel& l = levels[k];
+    l.sigma = r.f64("a level's sigma");
+    if (!(l.sigma > 0.0)) r.fail("level " + std::to_string(k + 1) + " has a non-positive sigma");
+    const std::uint64_t count = r.u64("a level's centre count");
+    if (count > (std::uint64_t{1} << 31)) r.fail("implausible centre count at level " + std::to_string(k + 1));
+    // Grow as we read so a corrupt count cannot allocate memory the file does not back.
+    std::vector<double> data;
+    for (std::uint64_t j = 0; j < count; ++j) {
+      for (int c = 0; c < 4; ++c) data.push_back(r.f64("a centre"));
+    }
+    l.centres.resize(static_cast<Eigen::Index>(count), 3);
+    l.weights.resize(static_cast<Eigen::Index>(count));
+    for (std::uint64_t j = 0; j < count; ++j) {
+      const auto i = static_cast<Eigen::Index>(j);
+      l.centres.row(i) << data[4 * j], data[4 * j + 1], data[4 * j + 2];
+      l.weights[i] = data[4 * j + 3];
+    }
+  }
+  const std::uint64_t expected = r.hash();
+  const std::uint64_t stored = r.u64("the checksum");
+  if (stored != expected) throw IoError(source + ": field file checksum mismatch (the file is corrupt)");
+  if (in.peek() != std::char_traits<char>::eof()) {
+    throw IoError(source + ": unexpected data after the end of the field file");
+  }
+  return ImplicitField(n, f0, std::move(levels), std::move(offsets), Eigen::AlignedBox3d(lo, hi));
+}
+
+ImplicitField ImplicitField::load(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw IoError(path + ": cannot open the field file");
+  return load(in, path);
+}
+
+}  // namespace duplexfit

@@ -1,0 +1,281 @@
+// FieldEvaluator: per-level uniform grids of the field's centres (cells at least σ_k wide, so the 27
+// cells around a query hold every centre within the support), uploaded once; batched evaluation by the
+// eval_field kernels or by the same loops in C++ on the reference device.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "device/cl_check.hpp"
+#include "device/device_impl.hpp"
+#include "duplexfit/error.hpp"
+#include "duplexfit/field.hpp"
+#include "linalg/storage.hpp"
+
+namespace duplexfit {
+
+namespace detail {
+
+struct EvaluatorImpl {
+  Device device;
+  Precision precision = Precision::Float;
+  Normalization norm;
+  double f0 = -1.0;
+  cl_uint levels = 0;
+  std::vector<double> params;           // 6 per level: origin xyz, 1/cell, sigma, 1/sigma
+  std::vector<cl_uint> dims;            // 5 per level: nx, ny, nz, cell_start offset, centre offset
+  std::vector<cl_uint> cellStart;       // per level nx*ny*nz + 1 prefix offsets
+  std::vector<double> packed;           // x, y, z, w per centre, sorted by cell within each level
+  std::vector<float> paramsF, packedF;  // float copies for the reference device in float
+  cl::Buffer paramsBuf, dimsBuf, cellStartBuf, centresBuf;
+
+  explicit EvaluatorImpl(const Device& d) : device(d) {}
+};
+
+}  // namespace detail
+
+namespace {
+
+constexpr std::size_t kMaxCellsPerLevel = std::size_t{1} << 24;
+constexpr std::size_t kChunk = std::size_t{1} << 20;
+
+void addLevel(detail::EvaluatorImpl& e, const FieldLevel& level) {
+  const Points& c = level.centres;
+  const auto n = static_cast<std::size_t>(c.rows());
+  Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();
+  if (n > 0) {
+    lo = c.colwise().minCoeff().transpose();
+    hi = c.colwise().maxCoeff().transpose();
+  }
+  double cell = level.sigma;
+  std::size_t nx = 1, ny = 1, nz = 1;
+  for (;;) {
+    const Eigen::Vector3d ext = (hi - lo) / cell;
+    nx = static_cast<std::size_t>(std::floor(ext.x())) + 1;
+    ny = static_cast<std::size_t>(std::floor(ext.y())) + 1;
+    nz = static_cast<std::size_t>(std::floor(ext.z())) + 1;
+    if (nx * ny * nz <= kMaxCellsPerLevel) break;
+    cell *= 1.25;  // coarser cells: still ≥ σ, so the 27-cell neighbourhood stays complete
+  }
+  const std::size_t cells = nx * ny * nz;
+  std::vector<std::size_t> cellOf(n);
+  std::vector<cl_uint> count(cells + 1, 0);
+  for (std::size_t j = 0; j < n; ++j) {
+    const auto i = static_cast<Eigen::Index>(j);
+    const auto ix = std::min(nx - 1, static_cast<std::size_t>((c(i, 0) - lo.x()) / cell));
+    const auto iy = std::min(ny - 1, static_cast<std::size_t>((c(i, 1) - lo.y()) / cell));
+    const auto iz = std::min(nz - 1, static_cast<std::size_t>((c(i, 2) - lo.z()) / cell));
+    cellOf[j] = (iz * ny + iy) * nx + ix;
+    ++count[cellOf[j] + 1];
+  }
+  for (std::size_t k = 0; k < cells; ++k) count[k + 1] += count[k];
+  const std::size_t cellBase = e.cellStart.size();
+  const std::size_t centreBase = e.packed.size() / 4;
+  if (centreBase + n > std::numeric_limits<cl_uint>::max() || cellBase + cells + 1 > std::numeric_limits<cl_uint>::max()) {
+    throw InvalidArgument("FieldEvaluator: the field has too many centres for 32-bit indices");
+  }
+  e.cellStart.insert(e.cellStart.end(), count.begin(), count.end());
+  e.packed.resize(4 * (centreBase + n));
+  std::vector<cl_uint> next(count.begin(), count.end() - 1);
+  for (std::size_t j = 0; j < n; ++j) {
+    const std::size_t slot = 4 * (centreBase + next[cellOf[j]]++);
+    const auto i = static_cast<Eigen::Index>(j);
+    e.packed[slot] = c(i, 0);
+    e.packed[slot + 1] = c(i, 1);
+    e.packed[slot + 2] = c(i, 2);
+    e.packed[slot + 3] = level.weights[i];
+  }
+  e.params.insert(e.params.end(), {lo.x(), lo.y(), lo.z(), 1.0 / cell, level.sigma, 1.0 / level.sigma});
+  e.dims.insert(e.dims.end(), {static_cast<cl_uint>(nx), static_cast<cl_uint>(ny), static_cast<cl_uint>(nz),
+                               static_cast<cl_uint>(cellBase), static_cast<cl_uint>(centreBase)});
+  ++e.levels;
+}
+
+// The kernel's loops in C++ (the reference twin of eval_point in kernels/eval_field.cl).
+template <typename T>
+void evalReference(const detail::EvaluatorImpl& e, const std::vector<T>& params, const std::vector<T>& packed,
+                   const T* q, std::size_t nq, int k, T* out) {
+#pragma omp parallel for schedule(dynamic, 1024)
+  for (std::ptrdiff_t qi = 0; qi < static_cast<std::ptrdiff_t>(nq); ++qi) {
+    const T x = q[3 * qi], y = q[3 * qi + 1], z = q[3 * qi + 2];
+    T f = static_cast<T>(e.f0), gx = 0, gy = 0, gz = 0, hxx = 0, hxy = 0, hxz = 0, hyy = 0, hyz = 0, hzz = 0;
+    for (cl_uint l = 0; l < e.levels; ++l) {
+      const T* p = &params[6 * l];
+      const cl_uint* d = &e.dims[5 * l];
+      const int nx = static_cast<int>(d[0]), ny = static_cast<int>(d[1]), nz = static_cast<int>(d[2]);
+      const int cx = static_cast<int>(std::floor((x - p[0]) * p[3]));
+      const int cy = static_cast<int>(std::floor((y - p[1]) * p[3]));
+      const int cz = static_cast<int>(std::floor((z - p[2]) * p[3]));
+      if (cx < -1 || cy < -1 || cz < -1 || cx > nx || cy > ny || cz > nz) continue;
+      const T sigma = p[4], invSigma = p[5], s2 = sigma * sigma;
+      const T hScale = T(20) * invSigma * invSigma;
+      for (int iz = std::max(cz - 1, 0); iz <= std::min(cz + 1, nz - 1); ++iz) {
+        for (int iy = std::max(cy - 1, 0); iy <= std::min(cy + 1, ny - 1); ++iy) {
+          const std::size_t row = d[3] + static_cast<std::size_t>((iz * ny + iy) * nx);
+          const int x0 = std::max(cx - 1, 0), x1 = std::min(cx + 1, nx - 1);
+          if (x0 > x1) continue;
+          const std::size_t b = e.cellStart[row + static_cast<std::size_t>(x0)] + d[4];
+          const std::size_t en = e.cellStart[row + static_cast<std::size_t>(x1) + 1] + d[4];
+          for (std::size_t j = b; j < en; ++j) {
+            const T ux = x - packed[4 * j], uy = y - packed[4 * j + 1], uz = z - packed[4 * j + 2];
+            const T d2 = ux * ux + uy * uy + uz * uz;
+            if (d2 >= s2) continue;
+            const T w = packed[4 * j + 3];
+            const T rho = std::sqrt(d2);
+            const T r = rho * invSigma;
+            const T t = T(1) - r;
+            const T t2 = t * t;
+            f += w * t2 * t2 * (T(4) * r + T(1));
+            if (k >= 4) {
+              const T g = -w * hScale * t2 * t;
+              gx += g * ux;
+              gy += g * uy;
+              gz += g * uz;
+            }
+            if (k >= 10) {
+              const T a = w * hScale * t2;
+              const T c = rho > T(0) ? T(3) * r / d2 : T(0);
+              hxx += a * (c * ux * ux - t);
+              hyy += a * (c * uy * uy - t);
+              hzz += a * (c * uz * uz - t);
+              hxy += a * c * ux * uy;
+              hxz += a * c * ux * uz;
+              hyz += a * c * uy * uz;
+            }
+          }
+        }
+      }
+    }
+    T* o = out + static_cast<std::ptrdiff_t>(k) * qi;
+    o[0] = f;
+    if (k >= 4) {
+      o[1] = gx;
+      o[2] = gy;
+      o[3] = gz;
+    }
+    if (k >= 10) {
+      o[4] = hxx;
+      o[5] = hxy;
+      o[6] = hxz;
+      o[7] = hyy;
+      o[8] = hyz;
+      o[9] = hzz;
+    }
+  }
+}
+
+template <typename T>
+cl::Buffer uploadArray(const Device& device, const std::vector<T>& data, const std::string& what) {
+  cl::Buffer b = detail::createBuffer(device, std::max<std::size_t>(data.size(), 1) * sizeof(T), what);
+  if (!data.empty()) {
+    DUPLEXFIT_CL_CHECK(device.impl()->queue().enqueueWriteBuffer(b, CL_TRUE, 0, data.size() * sizeof(T), data.data()));
+  }
+  return b;
+}
+
+// Evaluates normalised queries (#Q×3) into a #Q×k row-major array of normalised results.
+std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u, int k) {
+  const auto nq = static_cast<std::size_t>(u.rows());
+  std::vector<double> result(nq * static_cast<std::size_t>(k));
+  if (nq == 0) return result;
+  detail::dispatch(e.precision, [&](auto zero) {
+    using T = decltype(zero);
+    for (std::size_t begin = 0; begin < nq; begin += kChunk) {
+      const std::size_t m = std::min(kChunk, nq - begin);
+      std::vector<T> q(3 * m), out(static_cast<std::size_t>(k) * m);
+      for (std::size_t i = 0; i < m; ++i) {
+        for (int c = 0; c < 3; ++c) q[3 * i + static_cast<std::size_t>(c)] = static_cast<T>(u(static_cast<Eigen::Index>(begin + i), c));
+      }
+      if (e.device.isReference()) {
+        if constexpr (std::is_same_v<T, double>) {
+          evalReference<double>(e, e.params, e.packed, q.data(), m, k, out.data());
+        } else {
+          evalReference<float>(e, e.paramsF, e.packedF, q.data(), m, k, out.data());
+        }
+      } else {
+        auto& impl = *e.device.impl();
+        const cl::Buffer qb = uploadArray(e.device, q, "field query points");
+        const cl::Buffer ob = detail::createBuffer(e.device, out.size() * sizeof(T), "field evaluation results");
+        const char* name = k == 1 ? "eval_field_value" : k == 4 ? "eval_field_gradient" : "eval_field_hessian";
+        cl::Kernel& kern = impl.kernel("field", e.precision, name);
+        detail::setArgs(kern, name, static_cast<cl_uint>(m), qb, e.levels, e.paramsBuf, e.dimsBuf, e.cellStartBuf,
+                        e.centresBuf);
+        detail::setRealArg(kern, 7, e.f0, e.precision, name);
+        detail::setArg(kern, 8, ob, name);
+        impl.launch(kern, m, impl.params().workGroup, name);
+        DUPLEXFIT_CL_CHECK(impl.queue().enqueueReadBuffer(ob, CL_TRUE, 0, out.size() * sizeof(T), out.data()));
+      }
+      for (std::size_t i = 0; i < out.size(); ++i) {
+        result[static_cast<std::size_t>(k) * begin + i] = static_cast<double>(out[i]);
+      }
+    }
+  });
+  return result;
+}
+
+}  // namespace
+
+FieldEvaluator::FieldEvaluator(const Device& device, const ImplicitField& field, Precision precision, int levelCount)
+    : impl_(std::make_unique<detail::EvaluatorImpl>(device)) {
+  device.requirePrecision(precision);
+  auto& e = *impl_;
+  e.precision = precision;
+  e.norm = field.normalization();
+  e.f0 = field.f0();
+  const int total = static_cast<int>(field.levels().size());
+  const int use = levelCount < 0 ? total : std::min(levelCount, total);
+  for (int k = 0; k < use; ++k) addLevel(e, field.levels()[static_cast<std::size_t>(k)]);
+  if (e.cellStart.empty()) e.cellStart.push_back(0);
+  if (device.isReference()) {
+    if (precision == Precision::Float) {
+      e.paramsF.assign(e.params.begin(), e.params.end());
+      e.packedF.assign(e.packed.begin(), e.packed.end());
+    }
+    return;
+  }
+  detail::dispatch(precision, [&](auto zero) {
+    using T = decltype(zero);
+    e.paramsBuf = uploadArray(device, std::vector<T>(e.params.begin(), e.params.end()), "field level parameters");
+    e.centresBuf = uploadArray(device, std::vector<T>(e.packed.begin(), e.packed.end()), "field centres");
+  });
+  e.dimsBuf = uploadArray(device, e.dims, "field grid sizes");
+  e.cellStartBuf = uploadArray(device, e.cellStart, "field grid cells");
+}
+
+FieldEvaluator::FieldEvaluator(FieldEvaluator&&) noexcept = default;
+FieldEvaluator& FieldEvaluator::operator=(FieldEvaluator&&) noexcept = default;
+FieldEvaluator::~FieldEvaluator() = default;
+
+const Device& FieldEvaluator::device() const { return impl_->device; }
+
+Eigen::VectorXd FieldEvaluator::evaluateNormalized(const Points& u) const {
+  const std::vector<double> raw = evaluateRaw(*impl_, u, 1);
+  return Eigen::Map<const Eigen::VectorXd>(raw.data(), static_cast<Eigen::Index>(raw.size()));
+}
+
+FieldSamples FieldEvaluator::evaluate(const Points& queries, FieldDerivatives derivatives) const {
+  const auto& e = *impl_;
+  for (Eigen::Index i = 0; i < queries.rows(); ++i) {
+    if (!queries.row(i).allFinite()) {
+      throw InvalidArgument("field evaluation: query point " + std::to_string(i) + " is not finite");
+    }
+  }
+  const Points u = (e.norm.scale * (queries.rowwise() - e.norm.centre.transpose())).eval();
+  const int k = derivatives == FieldDerivatives::None ? 1 : derivatives == FieldDerivatives::Gradient ? 4 : 10;
+  const std::vector<double> raw = evaluateRaw(e, u, k);
+  FieldSamples s;
+  const Eigen::Index n = queries.rows();
+  s.values.resize(n);
+  if (k >= 4) s.gradients.resize(n, 3);
+  if (k >= 10) s.hessians.resize(n, 6);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double* r = &raw[static_cast<std::size_t>(k * i)];
+    s.values[i] = r[0] / e.norm.scale;  // f_world = f_normalised / scale; ∇ unchanged; H · scale
+    if (k >= 4) s.gradients.row(i) << r[1], r[2], r[3];
+    if (k >= 10) {
+      for (int c = 0; c < 6; ++c) s.hessians(i, c) = r[4 + c] * e.norm.scale;
+    }
+  }
+  return s;
+}
+
+}  // namespace duplexfit

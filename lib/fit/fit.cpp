@@ -1,0 +1,187 @@
+// The duplex-fit pipeline (algorithm.md appendix): normalise to the unit box, build the hierarchy, and for
+// each level generate the constraints, assemble Φ_k + λ_k I, take b = t − f_{k−1}(C) from the field so far
+// (evaluated on the device), solve by PCG on the device, and append the level. Then measure E_0 and E_δ.
+#include "duplexfit/fit.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/wendland.hpp"
+#include "fit/constraints.hpp"
+#include "fit/hierarchy.hpp"
+
+namespace duplexfit {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+void report(const FitProgressCallback& progress, FitProgress event) {
+  if (progress && !progress(event)) throw Cancelled("fit cancelled during " + event.stage);
+}
+
+void checkOptions(const FitOptions& o) {
+  auto bad = [](const std::string& what) { throw InvalidArgument("fit options: " + what); };
+  if (!(o.validityTolerance >= 0.0 && o.validityTolerance < 1.0)) bad("validityTolerance must be in [0, 1)");
+  if (o.levels < 0 || o.levels > 24) bad("levels must be between 0 (automatic) and 24");
+  if (!(o.alpha > 0.0) || !std::isfinite(o.alpha)) bad("alpha must be positive");
+  if (!(o.smoothing >= 0.0) || !std::isfinite(o.smoothing)) bad("smoothing must be >= 0");
+  if (!(o.fitTolerance >= 0.0) || !std::isfinite(o.fitTolerance)) bad("fitTolerance must be >= 0");
+  for (double d : o.offsets) {
+    if (!std::isfinite(d)) bad("offsets must be finite");
+  }
+}
+
+}  // namespace
+
+FitResult fit(const Device& device, const PointSet& points, const FitOptions& options,
+              const FitProgressCallback& progress) {
+  const auto start = Clock::now();
+  checkOptions(options);
+  checkFittable(points, "input cloud");
+  device.requirePrecision(options.precision);
+
+  FitReport rep;
+  rep.device = device.description();
+  rep.precision = precisionName(options.precision);
+  rep.inputPoints = points.size();
+  rep.zeroNormals = points.zeroNormals();
+
+  // Normalise: centre the bounding box and scale its largest side to 1 (float-safe coordinates).
+  const Eigen::AlignedBox3d bounds = points.bounds();
+  const double side = bounds.sizes().maxCoeff();
+  Normalization norm;
+  norm.centre = bounds.center();
+  norm.scale = 1.0 / side;
+  const Points u = (norm.scale * (points.positions().rowwise() - norm.centre.transpose())).eval();
+  const Points nu = options.normalsInward ? points.normals() : Points(-points.normals());
+
+  // Offsets in input units (report) and normalised units (fit).
+  std::vector<double> deltas;
+  for (double d : options.offsets) {
+    const double world = options.offsetsRelative ? d * side : d;
+    if (world == 0.0) throw InvalidArgument("fit options: an offset of 0 is the surface itself; give a non-zero offset");
+    if (std::abs(world) >= side) {
+      std::ostringstream msg;
+      msg << "fit options: offset " << world << " is not smaller than the bounding box's largest side " << side;
+      throw InvalidArgument(msg.str());
+    }
+    rep.offsets.push_back(world);
+    deltas.push_back(world * norm.scale);
+  }
+  const bool inward = std::any_of(deltas.begin(), deltas.end(), [](double d) { return d > 0; });
+  const bool outward = std::any_of(deltas.begin(), deltas.end(), [](double d) { return d < 0; });
+  // Off-surface points go on the side without offsets (§3.2); none when offsets cover both sides.
+  const int offSide = inward && outward ? 0 : inward ? -1 : outward ? 1 : 2;
+  rep.offSurfaceSide = offSide == 0    ? "none (offsets on both sides)"
+                       : offSide == -1 ? "outside"
+                       : offSide == 1  ? "inside"
+                                       : "both sides (no offsets)";
+
+  // Hierarchy (§4).
+  auto t = Clock::now();
+  report(progress, {"hierarchy", 0, 0, 0, 0.0, "building the octree"});
+  const detail::HierarchyBox box = detail::hierarchyBox(u);
+  const double sigma1 = options.alpha * box.diagonal;
+  const double sigma0 = detail::adaptiveSigma0(u, box);
+  const int levels = options.levels > 0 ? options.levels : detail::levelCount(sigma1, sigma0);
+  rep.sigma0 = sigma0 / norm.scale;
+  rep.sigma1 = sigma1 / norm.scale;
+  rep.levels = levels;
+  rep.secondsHierarchy = since(t);
+
+  ImplicitField field(norm, -1.0, {}, rep.offsets, bounds);
+  std::vector<FieldLevel> fitted;
+  detail::LevelConstraints finest;
+  for (int k = 1; k <= levels; ++k) {
+    LevelReport lr;
+    lr.level = k;
+    const double sigma = sigma1 / std::pow(2.0, k - 1);
+    lr.sigma = sigma / norm.scale;
+
+    t = Clock::now();
+    report(progress, {"constraints", k, levels, 0, 0.0, ""});
+    detail::LevelPoints level = k < levels ? detail::cellCentroids(u, nu, box, k) : detail::LevelPoints{u, nu};
+    detail::ConstraintOptions co;
+    co.offsets = deltas;
+    co.offSurfaceDistance = sigma / 10.0;
+    co.offSurfaceSide = offSide;
+    co.validityTolerance = options.validityTolerance;
+    co.mergeDistance = 1e-6 * sigma;
+    co.dropZeroNormalPoints = options.dropZeroNormalPoints;
+    detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals, co);
+    lr.surfacePoints = c.surface;
+    lr.offsetCandidates = c.offsetCandidates;
+    lr.offsetKept = c.offsetKept;
+    lr.offSurfaceCandidates = c.offSurfaceCandidates;
+    lr.offSurfaceKept = c.offSurfaceKept;
+    lr.mergedCentres = c.merged;
+    lr.centres = static_cast<std::size_t>(c.centres.rows());
+    lr.secondsConstraints = since(t);
+
+    // Right-hand side b = t − f_{k−1}(C) (§5), f_0 = −1.
+    t = Clock::now();
+    report(progress, {"residual", k, levels, 0, 0.0, ""});
+    Eigen::VectorXd fPrev = Eigen::VectorXd::Constant(c.centres.rows(), -1.0);
+    if (!fitted.empty()) {
+      const ImplicitField partial(norm, -1.0, fitted, rep.offsets, bounds);
+      fPrev = FieldEvaluator(device, partial, options.precision).evaluateNormalized(c.centres);
+    }
+    const Eigen::VectorXd b = c.targets - fPrev;
+    lr.maxResidualBefore = (b.size() > 0 ? b.cwiseAbs().maxCoeff() : 0.0) / norm.scale;
+    lr.secondsResidual = since(t);
+    if (k >= 2 && options.fitTolerance > 0.0 && lr.maxResidualBefore * norm.scale <= options.fitTolerance) {
+      rep.stoppedEarly = true;
+      rep.levelReports.push_back(lr);
+      break;
+    }
+
+    t = Clock::now();
+    report(progress, {"assembly", k, levels, 0, 0.0, std::to_string(lr.centres) + " centres"});
+    const CsrMatrix a = assembleWendland(c.centres, sigma, options.smoothing * k);
+    lr.nonZeros = a.nonZeros();
+    lr.secondsAssembly = since(t);
+
+    t = Clock::now();
+    report(progress, {"solve", k, levels, 0, 0.0, std::to_string(lr.nonZeros) + " non-zeros"});
+    const DeviceCsr m = DeviceCsr::upload(device, a, options.precision);
+    const DeviceVector db = DeviceVector::upload(device, b, options.precision);
+    DeviceVector x(device, static_cast<std::size_t>(b.size()), options.precision);
+    SolverOptions so = options.solver;
+    so.progress = [&](int it, double res) {
+      if (options.solver.progress && !options.solver.progress(it, res)) return false;
+      return !progress || progress({"solve", k, levels, it, res, ""});
+    };
+    lr.solve = solveCg(m, db, x, so);
+    if (lr.solve.reason == StopReason::Cancelled) throw Cancelled("fit cancelled during the level " + std::to_string(k) + " solve");
+    lr.secondsSolve = since(t);
+
+    fitted.push_back(FieldLevel{sigma, c.centres, x.download()});
+    rep.levelReports.push_back(lr);
+    if (k == levels) finest = std::move(c);
+  }
+  field = ImplicitField(norm, -1.0, fitted, rep.offsets, bounds);
+
+  // E_0 and E_δ (§8.1): max errors at the input points and at the finest level's valid offset points.
+  report(progress, {"errors", 0, levels, 0, 0.0, ""});
+  const FieldEvaluator evaluator(device, field, options.precision);
+  const Eigen::VectorXd f0 = evaluator.evaluate(points.positions()).values;
+  rep.e0 = f0.size() > 0 ? f0.cwiseAbs().maxCoeff() : 0.0;
+  rep.eDelta.assign(deltas.size(), 0.0);
+  if (!rep.stoppedEarly && finest.centres.rows() > 0) {
+    const Eigen::VectorXd fc = evaluator.evaluateNormalized(finest.centres) / norm.scale;
+    for (std::size_t j = 0; j < deltas.size(); ++j) {
+      double e = 0.0;
+      for (const Eigen::Index r : finest.offsetRows[j]) e = std::max(e, std::abs(fc[r] - rep.offsets[j]));
+      rep.eDelta[j] = e;
+    }
+  }
+  rep.secondsTotal = since(start);
+  return FitResult{std::move(field), std::move(rep)};
+}
+
+}  // namespace duplexfit

@@ -1,0 +1,153 @@
+// ImplicitField: batched evaluation (reference grid path and OpenCL) against the brute-force sum,
+// derivatives against finite differences, and the binary file format (round trip and corruption).
+#include <doctest/doctest.h>
+
+#include <random>
+#include <sstream>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/field.hpp"
+#include "test_device.hpp"
+
+using namespace duplexfit;
+
+namespace {
+
+// A random three-level field in a box around the origin, with a non-trivial normalisation.
+ImplicitField randomField(unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-0.5, 0.5), w(-0.3, 0.3);
+  std::vector<FieldLevel> levels;
+  const int counts[3] = {20, 150, 1200};
+  for (int k = 0; k < 3; ++k) {
+    FieldLevel l;
+    l.sigma = 0.6 / (1 << k);
+    l.centres.resize(counts[k], 3);
+    l.weights.resize(counts[k]);
+    for (int j = 0; j < counts[k]; ++j) {
+      l.centres.row(j) << u(rng), u(rng), u(rng);
+      l.weights[j] = w(rng);
+    }
+    levels.push_back(std::move(l));
+  }
+  Normalization n;
+  n.centre = Eigen::Vector3d(1.0, -2.0, 0.5);
+  n.scale = 0.25;
+  return ImplicitField(n, -1.0, std::move(levels), {0.1, -0.2}, Eigen::AlignedBox3d(Eigen::Vector3d(-1, -4, -1.5), Eigen::Vector3d(3, 0, 2.5)));
+}
+
+Points randomQueries(const ImplicitField& f, int n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-2.4, 2.4);  // world units: beyond the centres' box too
+  Points q(n, 3);
+  for (int i = 0; i < n; ++i) q.row(i) = f.normalization().centre.transpose() + Eigen::RowVector3d(u(rng), u(rng), u(rng));
+  // Exactly at a centre of the finest level (ρ = 0 in the Hessian) and far away.
+  q.row(0) = (f.levels()[2].centres.row(5) / f.normalization().scale) + f.normalization().centre.transpose();
+  q.row(1) << 100.0, 100.0, 100.0;
+  return q;
+}
+
+}  // namespace
+
+TEST_SUITE("fit") {
+  TEST_CASE("field: gradient and Hessian agree with finite differences of the reference value") {
+    const ImplicitField f = randomField(1);
+    const Points q = randomQueries(f, 40, 2);
+    const double h = 1e-5;
+    for (Eigen::Index i = 2; i < q.rows(); ++i) {
+      const Eigen::Vector3d x = q.row(i).transpose();
+      const Eigen::Vector3d g = f.gradient(x);
+      const Eigen::Matrix3d H = f.hessian(x);
+      for (int a = 0; a < 3; ++a) {
+        Eigen::Vector3d e = Eigen::Vector3d::Zero();
+        e[a] = h;
+        CHECK(g[a] == doctest::Approx((f.value(x + e) - f.value(x - e)) / (2 * h)).epsilon(1e-5).scale(1.0));
+        const Eigen::Vector3d dg = (f.gradient(x + e) - f.gradient(x - e)) / (2 * h);
+        for (int b = 0; b < 3; ++b) CHECK(H(b, a) == doctest::Approx(dg[b]).epsilon(1e-4).scale(1.0));
+      }
+    }
+    // f → f0/scale far from every centre.
+    CHECK(f.value(Eigen::Vector3d(100, 100, 100)) == doctest::Approx(-1.0 / 0.25));
+  }
+
+  TEST_CASE("field: batched evaluation on the reference and OpenCL devices matches the brute-force sum") {
+    const ImplicitField f = randomField(3);
+    const Points q = randomQueries(f, 3001, 4);
+    std::vector<Device> devices{Device::reference()};
+    if (const Device* d = testing::openclTestDevice()) devices.push_back(*d);
+    for (const Device& d : devices) {
+      for (const Precision p : {Precision::Float, Precision::Double}) {
+        if (p == Precision::Double && !d.supportsDouble()) continue;
+        CAPTURE(d.info().spec);
+        CAPTURE(precisionName(p));
+        const double tol = p == Precision::Double ? 1e-10 : 2e-4;
+        const FieldSamples s = f.evaluate(d, q, FieldDerivatives::Hessian, p);
+        const FieldSamples v = f.evaluate(d, q, FieldDerivatives::None, p);
+        REQUIRE(s.values.size() == q.rows());
+        int bad = 0;
+        for (Eigen::Index i = 0; i < q.rows(); ++i) {
+          const Eigen::Vector3d x = q.row(i).transpose();
+          const double fv = f.value(x);
+          const Eigen::Vector3d g = f.gradient(x);
+          const Eigen::Matrix3d H = f.hessian(x);
+          const double scale = 1.0 + std::abs(fv);
+          if (std::abs(s.values[i] - fv) > tol * scale || std::abs(v.values[i] - fv) > tol * scale) ++bad;
+          if ((s.gradients.row(i).transpose() - g).norm() > tol * (1.0 + g.norm()) * 10) ++bad;
+          const double hs[6] = {H(0, 0), H(0, 1), H(0, 2), H(1, 1), H(1, 2), H(2, 2)};
+          for (int c = 0; c < 6; ++c) {
+            if (std::abs(s.hessians(i, c) - hs[c]) > tol * (1.0 + H.norm()) * 100) ++bad;
+          }
+        }
+        CHECK(bad == 0);
+      }
+    }
+  }
+
+  TEST_CASE("field: a partial evaluator sums only the first levels") {
+    const ImplicitField f = randomField(5);
+    const Points q = randomQueries(f, 50, 6);
+    const ImplicitField first(f.normalization(), f.f0(), {f.levels()[0]}, {}, f.bounds());
+    const FieldEvaluator e(Device::reference(), f, Precision::Double, 1);
+    const Eigen::VectorXd v = e.evaluate(q).values;
+    for (Eigen::Index i = 0; i < q.rows(); ++i) CHECK(v[i] == doctest::Approx(first.value(q.row(i).transpose())));
+  }
+
+  TEST_CASE("field: save and load round trip evaluates identically; corrupt files are rejected") {
+    const ImplicitField f = randomField(7);
+    std::stringstream buffer;
+    f.save(buffer);
+    const std::string bytes = buffer.str();
+    std::istringstream in(bytes);
+    const ImplicitField g = ImplicitField::load(in, "mem");
+    CHECK(g.levels().size() == 3);
+    CHECK(g.offsets() == f.offsets());
+    CHECK(g.normalization().scale == f.normalization().scale);
+    const Points q = randomQueries(f, 100, 8);
+    for (Eigen::Index i = 0; i < q.rows(); ++i) CHECK(g.value(q.row(i).transpose()) == f.value(q.row(i).transpose()));
+
+    // Every truncation is an IoError naming the source, never a crash.
+    for (std::size_t len = 0; len < bytes.size(); len += (len < 200 ? 1 : 997)) {
+      std::istringstream t(bytes.substr(0, len));
+      CHECK_THROWS_AS(ImplicitField::load(t, "cut.dxf"), IoError);
+    }
+    // A flipped bit in the payload fails the checksum.
+    std::string flipped = bytes;
+    flipped[bytes.size() / 2] = static_cast<char>(flipped[bytes.size() / 2] ^ 0x10);
+    std::istringstream fb(flipped);
+    CHECK_THROWS_AS(ImplicitField::load(fb, "flip.dxf"), IoError);
+    // Unknown version and bad magic say so.
+    std::string version = bytes;
+    version[8] = 9;
+    std::istringstream vb(version);
+    try {
+      (void)ImplicitField::load(vb, "v9.dxf");
+      FAIL("expected IoError");
+    } catch (const IoError& e) {
+      CHECK(std::string(e.what()).find("version 9") != std::string::npos);
+      CHECK(std::string(e.what()).find("v9.dxf") != std::string::npos);
+    }
+    std::istringstream junk("this is not a field file at all");
+    CHECK_THROWS_AS(ImplicitField::load(junk, "junk"), IoError);
+    CHECK_THROWS_AS(ImplicitField::load(std::string("/nonexistent/dir/x.dxf")), IoError);
+  }
+}

@@ -1,0 +1,126 @@
+// Duplex fitting on generated analytic shapes: the zero and δ level sets sit where the exact geometry
+// says, the OpenCL path agrees with the reference path, and bad options are clear errors.
+#include <doctest/doctest.h>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/fit.hpp"
+#include "shapes.hpp"
+#include "test_device.hpp"
+
+using namespace duplexfit;
+
+namespace {
+
+PointSet sphereCloud(int n, double radius) {
+  Points normals;
+  Points p = testing::fibonacciSphere(n, radius, &normals);
+  return PointSet(std::move(p), std::move(normals));
+}
+
+// max |f − expected| over points on a sphere of the given radius.
+double sphereError(const ImplicitField& f, const Device& d, double radius, double expected) {
+  const Points q = testing::fibonacciSphere(1500, radius);
+  const Eigen::VectorXd v = f.evaluate(d, q).values;
+  return (v.array() - expected).abs().maxCoeff();
+}
+
+}  // namespace
+
+TEST_SUITE("fit") {
+  TEST_CASE("fit: a sphere with an inward offset puts f = 0 on the surface and f = δ on the offset sphere") {
+    const PointSet cloud = sphereCloud(4000, 0.5);
+    FitOptions options;
+    options.offsets = {0.1};
+    std::vector<Device> devices{Device::reference()};
+    if (const Device* d = testing::openclTestDevice()) devices.push_back(*d);
+    std::vector<Eigen::VectorXd> samples;
+    const Points probe = testing::fibonacciSphere(500, 0.45);
+    for (const Device& d : devices) {
+      CAPTURE(d.info().spec);
+      const FitResult r = fit(d, cloud, options);
+      CHECK(r.report.levels >= 4);
+      CHECK(r.report.levels <= 7);
+      CHECK(r.report.offSurfaceSide == "outside");
+      for (const LevelReport& l : r.report.levelReports) {
+        CHECK(l.solve.converged);
+        CHECK(l.offsetKept[0] == l.offsetCandidates[0]);  // exact normals on a sphere: all valid (§3.1)
+      }
+      CHECK(r.report.e0 <= 1e-4);
+      CHECK(r.report.eDelta[0] <= 1e-4);
+      CHECK(sphereError(r.field, d, 0.5, 0.0) <= 1e-3);
+      CHECK(sphereError(r.field, d, 0.4, 0.1) <= 1e-3);  // within 1% of δ on the exact offset surface
+      // Sign and level sets elsewhere: outside negative, inside above δ, far away −1.
+      CHECK(r.field.evaluate(d, testing::fibonacciSphere(200, 0.6)).values.maxCoeff() < 0.0);
+      CHECK(r.field.evaluate(d, testing::fibonacciSphere(200, 0.3)).values.minCoeff() > 0.1);
+      CHECK(r.field.value(Eigen::Vector3d(5, 5, 5)) == doctest::Approx(-1.0 / r.field.normalization().scale));
+      samples.push_back(r.field.evaluate(Device::reference(), probe, FieldDerivatives::None, Precision::Double).values);
+    }
+    if (samples.size() == 2) CHECK((samples[0] - samples[1]).cwiseAbs().maxCoeff() <= 1e-4);
+  }
+
+  TEST_CASE("fit: an outward offset and several offsets in one field are each right") {
+    const PointSet cloud = sphereCloud(3000, 0.5);
+    const Device d = testing::openclTestDevice() != nullptr ? *testing::openclTestDevice() : Device::reference();
+    FitOptions out;
+    out.offsets = {-0.05};
+    const FitResult r = fit(d, cloud, out);
+    CHECK(r.report.offSurfaceSide == "inside");
+    CHECK(sphereError(r.field, d, 0.55, -0.05) <= 5e-4);
+    CHECK(sphereError(r.field, d, 0.5, 0.0) <= 5e-4);
+
+    FitOptions both;
+    both.offsets = {0.1, 0.05, -0.05};
+    const FitResult m = fit(d, cloud, both);
+    CHECK(m.report.offSurfaceSide == "none (offsets on both sides)");
+    CHECK(m.report.offsets.size() == 3);
+    CHECK(sphereError(m.field, d, 0.4, 0.1) <= 1e-3);
+    CHECK(sphereError(m.field, d, 0.45, 0.05) <= 5e-4);
+    CHECK(sphereError(m.field, d, 0.55, -0.05) <= 5e-4);
+    CHECK(sphereError(m.field, d, 0.5, 0.0) <= 5e-4);
+  }
+
+  TEST_CASE("fit: relative offsets are fractions of the largest side") {
+    const PointSet cloud = sphereCloud(1000, 2.0);  // largest side 4
+    FitOptions o;
+    o.offsets = {0.025};
+    o.offsetsRelative = true;
+    const FitResult r = fit(Device::reference(), cloud, o);
+    REQUIRE(r.report.offsets.size() == 1);
+    CHECK(r.report.offsets[0] == doctest::Approx(0.025 * cloud.bounds().sizes().maxCoeff()));
+    CHECK(sphereError(r.field, Device::reference(), 2.0 - r.report.offsets[0], r.report.offsets[0]) <= 2e-3);
+  }
+
+  TEST_CASE("fit: bad input and options are clear errors") {
+    const PointSet cloud = sphereCloud(500, 0.5);
+    FitOptions zero;
+    zero.offsets = {0.0};
+    CHECK_THROWS_AS(fit(Device::reference(), cloud, zero), InvalidArgument);
+    FitOptions huge;
+    huge.offsets = {1.5};
+    try {
+      (void)fit(Device::reference(), cloud, huge);
+      FAIL("expected InvalidArgument");
+    } catch (const InvalidArgument& e) {
+      CHECK(std::string(e.what()).find("largest side") != std::string::npos);
+    }
+    FitOptions eta;
+    eta.validityTolerance = 1.5;
+    CHECK_THROWS_AS(fit(Device::reference(), cloud, eta), InvalidArgument);
+    CHECK_THROWS_AS(fit(Device::reference(), sphereCloud(7, 0.5), FitOptions{}), InvalidArgument);
+  }
+
+  TEST_CASE("fit: progress reports every stage and can cancel") {
+    const PointSet cloud = sphereCloud(1000, 0.5);
+    std::vector<std::string> stages;
+    FitOptions o;
+    o.offsets = {0.1};
+    const FitResult r = fit(Device::reference(), cloud, o, [&](const FitProgress& p) {
+      if (stages.empty() || stages.back() != p.stage) stages.push_back(p.stage);
+      return true;
+    });
+    CHECK(std::find(stages.begin(), stages.end(), "solve") != stages.end());
+    CHECK(std::find(stages.begin(), stages.end(), "errors") != stages.end());
+    CHECK_THROWS_AS(fit(Device::reference(), cloud, o, [](const FitProgress& p) { return p.stage != "assembly"; }),
+                    Cancelled);
+  }
+}
