@@ -17,20 +17,19 @@
 #include "duplexfit/linalg.hpp"
 #include "duplexfit/version.hpp"
 #include "duplexfit/wendland.hpp"
+#include "args.hpp"
+#include "commands.hpp"
 #include "json.hpp"
 
 namespace {
 
 using namespace duplexfit;
 using Clock = std::chrono::steady_clock;
-
-// Exit codes (docs: README): 1 usage, 2 I/O, 3 device, 4 numerical failure with --strict.
-constexpr int kUsage = 1, kDevice = 3, kNumerical = 4;
-
-class UsageError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+using cli::Args;
+using cli::UsageError;
+using cli::kUsage;
+using cli::kDevice;
+using cli::kNumerical;
 
 const char* kHelp = R"(usage: duplexfit <command> [options]
 
@@ -49,64 +48,28 @@ commands:
       --max-iterations N  iteration cap (default 20000)
       --json           write the result as JSON on stdout
       --strict         exit with status 4 when CG does not converge
+  fit INPUT          fit one field to an oriented cloud (PLY or XYZ "x y z nx ny nz"; normals outward)
+                     and write zero.ply, offset1.ply, ..., field.dpxf and report.json
+      --offset D[,D..] signed offsets in input units: positive = inward (hollowing), negative = outward
+      --offset-rel     offsets are fractions of the bounding box's largest side
+      -o DIR           output folder (default: current folder)
+      --device SPEC, --precision float|double, --quiet, --strict (exit 4 if a level's CG fails)
+      --normals-inward the input normals point into the solid
+      --validity-tol η offset validity tolerance (default 0.01)
+      --levels M       number of levels (default: from the point density)
+      --smoothing s    approximation mode, λ_k = s·k (default 0: interpolation)
+      --fit-tol ε      stop early when the residual at the next level's centres is below ε
+      --tol T, --max-iterations N   CG tolerance and cap
+      --cell H / --resolution R     marching grid cell size / cells along the longest side
+      --format ply|obj|stl          mesh format (default ply)
+      --drop-zero-normals           drop points whose normal is zero instead of keeping them at f = 0
+  mesh FIELD         extract one level set of a saved field: --iso V (default 0) -o OUT.ply|obj|stl
+                     [--device SPEC] [--cell H | --resolution R]
   --version, --help
 
 Progress goes to stderr; --quiet silences it.
 )";
 
-/// Options as --key value / --key=value pairs and bare --flags.
-class Args {
- public:
-  Args(int argc, char** argv, int first, const std::vector<std::string>& valued) {
-    for (int i = first; i < argc; ++i) {
-      std::string a = argv[i];
-      if (a.rfind("--", 0) != 0) throw UsageError("unexpected argument '" + a + "'");
-      std::string key = a.substr(2), value;
-      const auto eq = key.find('=');
-      if (eq != std::string::npos) {
-        value = key.substr(eq + 1);
-        key = key.substr(0, eq);
-      } else if (std::find(valued.begin(), valued.end(), key) != valued.end()) {
-        if (i + 1 >= argc) throw UsageError("option --" + key + " needs a value");
-        value = argv[++i];
-      } else {
-        value = "1";
-      }
-      values_[key] = value;
-    }
-  }
-  bool flag(const std::string& k) { return take(k).has_value(); }
-  std::string str(const std::string& k, const std::string& def) { return take(k).value_or(def); }
-  double num(const std::string& k, double def) {
-    const auto v = take(k);
-    if (!v) return def;
-    char* end = nullptr;
-    const double d = std::strtod(v->c_str(), &end);
-    if (end == v->c_str() || *end != '\0' || !std::isfinite(d)) {
-      throw UsageError("option --" + k + ": '" + *v + "' is not a number");
-    }
-    return d;
-  }
-  long integer(const std::string& k, long def) {
-    const double d = num(k, static_cast<double>(def));
-    if (d != std::floor(d)) throw UsageError("option --" + k + " must be an integer");
-    return static_cast<long>(d);
-  }
-  /// Rejects options nobody asked for (typos).
-  void finish() const {
-    if (!values_.empty()) throw UsageError("unknown option --" + values_.begin()->first);
-  }
-
- private:
-  std::optional<std::string> take(const std::string& k) {
-    const auto it = values_.find(k);
-    if (it == values_.end()) return std::nullopt;
-    std::string v = it->second;
-    values_.erase(it);
-    return v;
-  }
-  std::map<std::string, std::string> values_;
-};
 
 std::string mib(std::uint64_t bytes) {
   std::ostringstream s;
@@ -295,6 +258,14 @@ int main(int argc, char** argv) {
       Args args(argc, argv, 2, {});
       return cmdDevices(args);
     }
+    if (cmd == "fit") {
+      Args args(argc, argv, 2, cli::kFitValued);
+      return cli::cmdFit(args);
+    }
+    if (cmd == "mesh") {
+      Args args(argc, argv, 2, cli::kMeshValued);
+      return cli::cmdMesh(args);
+    }
     if (cmd == "solve") {
       Args args(argc, argv, 2, {"device", "precision", "points", "delta", "nnz", "tol", "max-iterations"});
       return cmdSolve(args);
@@ -306,6 +277,12 @@ int main(int argc, char** argv) {
   } catch (const InvalidArgument& e) {
     std::cerr << "duplexfit: " << e.what() << "\n";
     return kUsage;
+  } catch (const IoError& e) {
+    std::cerr << "duplexfit: " << e.what() << "\n";
+    return cli::kIo;
+  } catch (const Cancelled& e) {
+    std::cerr << "duplexfit: " << e.what() << "\n";
+    return kNumerical;
   } catch (const DeviceError& e) {
     std::cerr << "duplexfit: " << e.what() << "\n";
     return kDevice;

@@ -13,6 +13,12 @@
 
 namespace duplexfit {
 
+/// Preconditioner of the level solves.
+enum class PreconditionerKind {
+  Jacobi,       ///< the paper's choice; only a scaling here (constant diagonal 1 + λ_k)
+  BlockJacobi   ///< exact inverses of diagonal blocks of spatially ordered centres (default)
+};
+
 /// Fit parameters. Every field documents its unit and default; defaults follow algorithm.md.
 struct FitOptions {
   /// Signed offsets δ in input units (or fractions of the bounding box's largest side when offsetsRelative):
@@ -31,11 +37,17 @@ struct FitOptions {
   double smoothing = 0.0;
   /// ε_fit: stop before level k ≥ 2 when max |t_i − f_{k−1}(c_i)| ≤ ε_fit (normalised units); 0: off.
   double fitTolerance = 0.0;
+  /// Centres of a level closer than mergeDistance·σ_k are merged (zero-level over offset over off-surface,
+  /// §3.5). Near-duplicates make the level system ill-conditioned; raising this trades exact interpolation
+  /// of such points (|f| at a merged point ≲ mergeDistance·σ_k) for faster solves.
+  double mergeDistance = 1e-6;
   /// Points with a zero normal: false keeps them as f = 0 constraints without companions (§3.3).
   bool dropZeroNormalPoints = false;
   /// Arithmetic of the device solves and field evaluations.
   Precision precision = Precision::Float;
   SolverOptions solver{};
+  PreconditionerKind preconditioner = PreconditionerKind::BlockJacobi;
+  int blockSize = 16;  ///< rows per block of the block Jacobi preconditioner
 };
 
 /// One hierarchy level's counts, solver outcome and stage times.

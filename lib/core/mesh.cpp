@@ -1,11 +1,14 @@
-// Mesh queries: topology statistics (edges from sorted vertex pairs, face fans per vertex, components
-// by union-find over edge-adjacent faces), signed volume and surface area.
+// Mesh queries: topology statistics (edges from sorted vertex pairs, face fans per vertex,
+// components by union-find over edge-adjacent faces), signed volume and surface area.
 #include "duplexfit/mesh.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <numeric>
 #include <string>
 #include <vector>
+
+#include <Eigen/Geometry>
 
 #include "duplexfit/error.hpp"
 
@@ -43,9 +46,10 @@ class DisjointSets {
 /// Throws InvalidArgument naming the first face with an index outside [0, #V).
 void checkIndices(const Mesh& mesh, const char* caller) {
   const Eigen::Index nv = mesh.vertices.rows();
+  const std::int32_t* faces = mesh.faces.data();
   for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
     for (int k = 0; k < 3; ++k) {
-      const std::int32_t v = mesh.faces(f, k);
+      const std::int32_t v = faces[3 * f + k];
       if (v < 0 || v >= nv) {
         throw InvalidArgument(std::string(caller) + ": face " + std::to_string(f) +
                               " has vertex index " + std::to_string(v) + " out of range [0, " +
@@ -53,11 +57,6 @@ void checkIndices(const Mesh& mesh, const char* caller) {
       }
     }
   }
-}
-
-bool isDegenerate(const Mesh& mesh, Eigen::Index f) {
-  const auto& t = mesh.faces;
-  return t(f, 0) == t(f, 1) || t(f, 1) == t(f, 2) || t(f, 2) == t(f, 0);
 }
 
 /// A directed face edge keyed by its undirected vertex pair.
@@ -72,6 +71,7 @@ struct HalfEdge {
 MeshTopology analyzeTopology(const Mesh& mesh) {
   checkIndices(mesh, "analyzeTopology");
   MeshTopology topo;
+  const std::int32_t* faces = mesh.faces.data();  // row-major #F×3
   const auto nf = static_cast<std::size_t>(mesh.faces.rows());
   const auto nv = static_cast<std::size_t>(mesh.vertices.rows());
   topo.faces = nf;
@@ -84,15 +84,15 @@ MeshTopology analyzeTopology(const Mesh& mesh) {
   std::vector<bool> referenced(nv, false);
   std::vector<std::size_t> degree(nv + 1, 0);
   for (std::size_t f = 0; f < nf; ++f) {
-    const auto fi = static_cast<Eigen::Index>(f);
-    if (isDegenerate(mesh, fi)) {
+    const std::int32_t* t = faces + 3 * f;
+    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) {
       ++topo.degenerateFaces;
       continue;
     }
     valid[f] = true;
     for (int k = 0; k < 3; ++k) {
-      const auto a = static_cast<std::uint32_t>(mesh.faces(fi, k));
-      const auto b = static_cast<std::uint32_t>(mesh.faces(fi, (k + 1) % 3));
+      const auto a = static_cast<std::uint32_t>(t[k]);
+      const auto b = static_cast<std::uint32_t>(t[(k + 1) % 3]);
       const std::uint64_t lo = std::min(a, b), hi = std::max(a, b);
       halfEdges.push_back({(lo << 32) | hi, static_cast<std::uint32_t>(f), a < b});
       referenced[a] = true;
@@ -133,7 +133,7 @@ MeshTopology analyzeTopology(const Mesh& mesh) {
     for (std::size_t f = 0; f < nf; ++f) {
       if (!valid[f]) continue;
       for (int k = 0; k < 3; ++k) {
-        const auto v = static_cast<std::size_t>(mesh.faces(static_cast<Eigen::Index>(f), k));
+        const auto v = static_cast<std::size_t>(faces[3 * f + static_cast<std::size_t>(k)]);
         incident[fill[v]++] = static_cast<std::uint32_t>(f);
       }
     }
@@ -147,9 +147,9 @@ MeshTopology analyzeTopology(const Mesh& mesh) {
     if (end - begin < 2) continue;
     spokes.clear();
     for (std::size_t i = begin; i < end; ++i) {
-      const auto f = static_cast<Eigen::Index>(incident[i]);
+      const std::int32_t* t = faces + 3 * std::size_t{incident[i]};
       for (int k = 0; k < 3; ++k) {
-        const std::int32_t w = mesh.faces(f, k);
+        const std::int32_t w = t[k];
         if (static_cast<std::size_t>(w) != v) {
           spokes.emplace_back(w, static_cast<std::uint32_t>(i - begin));
         }
@@ -176,28 +176,41 @@ MeshTopology analyzeTopology(const Mesh& mesh) {
 double signedVolume(const Mesh& mesh) {
   checkIndices(mesh, "signedVolume");
   if (mesh.faces.rows() == 0) return 0.0;
-  // Tetrahedra against the box centre rather than the origin: the same value for a closed mesh, with
-  // less cancellation when the model sits far from the origin.
+  // Tetrahedra against the box centre rather than the origin: the same value for a closed mesh,
+  // with less cancellation when the model sits far from the origin.
   const Eigen::RowVector3d centre =
       0.5 * (mesh.vertices.colwise().minCoeff() + mesh.vertices.colwise().maxCoeff());
+  const double* v = mesh.vertices.data();  // row-major #V×3
+  const std::int32_t* f = mesh.faces.data();
   double sum = 0.0;
-  for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
-    const Eigen::Vector3d a = (mesh.vertices.row(mesh.faces(f, 0)) - centre).transpose();
-    const Eigen::Vector3d b = (mesh.vertices.row(mesh.faces(f, 1)) - centre).transpose();
-    const Eigen::Vector3d c = (mesh.vertices.row(mesh.faces(f, 2)) - centre).transpose();
-    sum += a.dot(b.cross(c));
+  for (Eigen::Index i = 0; i < mesh.faces.rows(); ++i, f += 3) {
+    double a[3], b[3], c[3];
+    for (int k = 0; k < 3; ++k) {
+      a[k] = v[3 * f[0] + k] - centre(k);
+      b[k] = v[3 * f[1] + k] - centre(k);
+      c[k] = v[3 * f[2] + k] - centre(k);
+    }
+    sum += a[0] * (b[1] * c[2] - b[2] * c[1]) + a[1] * (b[2] * c[0] - b[0] * c[2]) +
+           a[2] * (b[0] * c[1] - b[1] * c[0]);
   }
   return sum / 6.0;
 }
 
 double surfaceArea(const Mesh& mesh) {
   checkIndices(mesh, "surfaceArea");
+  const double* v = mesh.vertices.data();  // row-major #V×3
+  const std::int32_t* f = mesh.faces.data();
   double sum = 0.0;
-  for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
-    const Eigen::Vector3d a = mesh.vertices.row(mesh.faces(f, 0)).transpose();
-    const Eigen::Vector3d b = mesh.vertices.row(mesh.faces(f, 1)).transpose();
-    const Eigen::Vector3d c = mesh.vertices.row(mesh.faces(f, 2)).transpose();
-    sum += (b - a).cross(c - a).norm();
+  for (Eigen::Index i = 0; i < mesh.faces.rows(); ++i, f += 3) {
+    double u[3], w[3];
+    for (int k = 0; k < 3; ++k) {
+      u[k] = v[3 * f[1] + k] - v[3 * f[0] + k];
+      w[k] = v[3 * f[2] + k] - v[3 * f[0] + k];
+    }
+    const double x = u[1] * w[2] - u[2] * w[1];
+    const double y = u[2] * w[0] - u[0] * w[2];
+    const double z = u[0] * w[1] - u[1] * w[0];
+    sum += std::sqrt(x * x + y * y + z * z);
   }
   return 0.5 * sum;
 }

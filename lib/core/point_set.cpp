@@ -2,6 +2,7 @@
 // rounded positions, algorithm.md §3.5) and the fittability checks run before a fit.
 #include "duplexfit/point_set.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -63,8 +64,7 @@ PointSet::PointSet(Points positions, Points normals)
   }
   for (Eigen::Index i = 0; i < positions_.rows(); ++i) {
     if (!positions_.row(i).allFinite()) {
-      throw InvalidArgument("PointSet: position of point " + std::to_string(i) +
-                            " is not finite");
+      throw InvalidArgument("PointSet: position of point " + std::to_string(i) + " is not finite");
     }
     if (!normals_.row(i).allFinite()) {
       throw InvalidArgument("PointSet: normal of point " + std::to_string(i) + " is not finite");
@@ -171,13 +171,14 @@ void PointSet::flipNormals() { normals_ = -normals_; }
 void checkFittable(const PointSet& points, const std::string& source) {
   const std::size_t n = points.size();
   if (n < 10) {
-    throw InvalidArgument(source + ": only " + std::to_string(n) + " point" +
-                          (n == 1 ? "" : "s") + "; fitting needs at least 10");
+    throw InvalidArgument(source + ": only " + std::to_string(n) + " point" + (n == 1 ? "" : "s") +
+                          "; fitting needs at least 10");
   }
   const Points& p = points.positions();
   const Eigen::AlignedBox3d box = points.bounds();
   const double diagonal = box.diagonal().norm();
-  const double magnitude = std::max(box.min().cwiseAbs().maxCoeff(), box.max().cwiseAbs().maxCoeff());
+  const double magnitude =
+      std::max(box.min().cwiseAbs().maxCoeff(), box.max().cwiseAbs().maxCoeff());
   // Coincident: no extent at all, or an extent below what doubles can resolve at that magnitude.
   if (!(diagonal > 1e-12 * magnitude)) {
     throw InvalidArgument(source + ": all " + std::to_string(n) +

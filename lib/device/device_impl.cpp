@@ -71,6 +71,7 @@ const std::vector<std::pair<std::string, std::vector<std::string>>>& programTabl
       {"spmv", {"common", "spmv_csr"}},
       {"cg", {"common", "cg_fused"}},
       {"field", {"common", "eval_field"}},
+      {"precond", {"common", "precond"}},
   };
   return table;
 }

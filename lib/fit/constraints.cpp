@@ -2,7 +2,9 @@
 // near-duplicate centres (§3.5), using the FLANN-backed NeighborIndex.
 #include "fit/constraints.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 #include "duplexfit/neighbors.hpp"
 
@@ -120,9 +122,28 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   out.centres.resize(kept, 3);
   out.targets.resize(kept);
   out.offsetRows.assign(options.offsets.size(), {});
+  // Spatial (Morton) order: neighbours in space become neighbours in memory, which keeps SpMV reads of x
+  // local and puts each point next to its close offset/off-surface companions (for block preconditioners).
+  std::vector<std::pair<std::uint64_t, Eigen::Index>> order;
+  order.reserve(static_cast<std::size_t>(kept));
+  if (total > 0) {
+    const Eigen::Vector3d lo = all.colwise().minCoeff().transpose();
+    const double extent = std::max(1e-300, (all.colwise().maxCoeff().transpose() - lo).maxCoeff());
+    for (Eigen::Index i = 0; i < total; ++i) {
+      if (keep[static_cast<std::size_t>(i)] == 0) continue;
+      std::uint64_t key = 0;
+      for (int a = 0; a < 3; ++a) {
+        const double t = (all(i, a) - lo[a]) / extent * 2097151.0;
+        const auto c = static_cast<std::uint64_t>(std::min(2097151.0, std::max(0.0, t)));
+        for (int bit = 0; bit < 21; ++bit) key |= ((c >> bit) & 1u) << (3 * bit + a);
+      }
+      order.emplace_back(key, i);
+    }
+    std::sort(order.begin(), order.end());
+  }
   Eigen::Index r = 0;
-  for (Eigen::Index i = 0; i < total; ++i) {
-    if (keep[static_cast<std::size_t>(i)] == 0) continue;
+  for (const auto& entry : order) {
+    const Eigen::Index i = entry.second;
     out.centres.row(r) = all.row(i);
     out.targets[r] = targets[i];
     const int b = blockOf[static_cast<std::size_t>(i)];

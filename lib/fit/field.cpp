@@ -11,8 +11,7 @@
 #include <ostream>
 #include <sstream>
 
-#include <unistd.h>
-
+#include "duplexfit/atomic_file.hpp"
 #include "duplexfit/error.hpp"
 
 namespace duplexfit {
@@ -207,24 +206,11 @@ void ImplicitField::save(std::ostream& out) const {
 }
 
 void ImplicitField::save(const std::string& path) const {
-  const std::string tmp = path + ".tmp-" + std::to_string(getpid());
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw IoError(path + ": cannot create the field file (is the folder writable?)");
-    try {
-      save(out);
-      out.flush();
-      if (!out) throw IoError(path + ": write failed");
-    } catch (...) {
-      out.close();
-      std::remove(tmp.c_str());
-      throw;
-    }
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw IoError(path + ": cannot move the finished field file into place");
-  }
+  std::ostringstream buffer(std::ios::binary);
+  save(buffer);
+  AtomicFile out(path);  // temporary file + rename: a failed save leaves nothing behind
+  out.write(buffer.str());
+  out.commit();
 }
 
 ImplicitField ImplicitField::load(std::istream& in, const std::string& source) {

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <sstream>
 
 #include "duplexfit/error.hpp"
@@ -31,6 +32,8 @@ void checkOptions(const FitOptions& o) {
   if (!(o.alpha > 0.0) || !std::isfinite(o.alpha)) bad("alpha must be positive");
   if (!(o.smoothing >= 0.0) || !std::isfinite(o.smoothing)) bad("smoothing must be >= 0");
   if (!(o.fitTolerance >= 0.0) || !std::isfinite(o.fitTolerance)) bad("fitTolerance must be >= 0");
+  if (!(o.mergeDistance >= 0.0 && o.mergeDistance < 0.5)) bad("mergeDistance must be in [0, 0.5)");
+  if (o.blockSize < 1 || o.blockSize > 256) bad("blockSize must be in [1, 256]");
   for (double d : o.offsets) {
     if (!std::isfinite(d)) bad("offsets must be finite");
   }
@@ -111,7 +114,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     co.offSurfaceDistance = sigma / 10.0;
     co.offSurfaceSide = offSide;
     co.validityTolerance = options.validityTolerance;
-    co.mergeDistance = 1e-6 * sigma;
+    co.mergeDistance = options.mergeDistance * sigma;
     co.dropZeroNormalPoints = options.dropZeroNormalPoints;
     detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals, co);
     lr.surfacePoints = c.surface;
@@ -156,7 +159,13 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
       if (options.solver.progress && !options.solver.progress(it, res)) return false;
       return !progress || progress({"solve", k, levels, it, res, ""});
     };
-    lr.solve = solveCg(m, db, x, so);
+    std::unique_ptr<Preconditioner> pre;
+    if (options.preconditioner == PreconditionerKind::BlockJacobi) {
+      pre = std::make_unique<BlockJacobiPreconditioner>(device, a, options.precision, options.blockSize);
+    } else {
+      pre = std::make_unique<JacobiPreconditioner>(m);
+    }
+    lr.solve = solveCg(m, db, x, so, pre.get());
     if (lr.solve.reason == StopReason::Cancelled) throw Cancelled("fit cancelled during the level " + std::to_string(k) + " solve");
     lr.secondsSolve = since(t);
 

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <exception>
 #include <limits>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -97,8 +98,12 @@ CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
 
   const NeighborIndex index(centres);
   const std::size_t reserve = estimateNonZeros(index, centres, sigma);
-  a.colIdx.reserve(reserve);
-  a.values.reserve(reserve);
+  try {
+    a.colIdx.reserve(reserve);
+    a.values.reserve(reserve);
+  } catch (const std::bad_alloc&) {
+    // The estimate's margin may not fit where the matrix itself does: grow as needed instead.
+  }
   const double diagonal = 1.0 + lambda;
 
   Points block;

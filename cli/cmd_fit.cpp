@@ -1,0 +1,286 @@
+// `duplexfit fit`: cloud in, one field out, plus meshes of the surface and every offset surface and a
+// JSON report; `duplexfit mesh`: re-extract a level set from a saved field. Outputs are staged in a
+// temporary folder inside the output folder and moved into place only when everything succeeded.
+#include <chrono>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+
+#include <unistd.h>
+
+#include "commands.hpp"
+#include "duplexfit/error.hpp"
+#include "duplexfit/fit.hpp"
+#include "duplexfit/io.hpp"
+#include "duplexfit/surfaces.hpp"
+#include "json.hpp"
+
+namespace duplexfit::cli {
+
+const std::vector<std::string> kFitValued = {"offset", "output", "device", "precision", "validity-tol", "levels",
+                                             "smoothing", "fit-tol", "tol", "max-iterations", "cell", "resolution",
+                                             "format", "alpha"};
+const std::vector<std::string> kMeshValued = {"iso", "output", "device", "precision", "cell", "resolution"};
+
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+std::vector<double> parseList(const std::string& text, const char* option) {
+  std::vector<double> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    char* end = nullptr;
+    const double v = std::strtod(item.c_str(), &end);
+    if (item.empty() || end == item.c_str() || *end != '\0' || !std::isfinite(v)) {
+      throw UsageError(std::string("option --") + option + ": '" + item + "' is not a number");
+    }
+    out.push_back(v);
+  }
+  if (out.empty()) throw UsageError(std::string("option --") + option + " needs at least one value");
+  return out;
+}
+
+/// A folder inside the output folder that receives every output first; commit() moves the files into
+/// the output folder, the destructor removes whatever is left (a failed run leaves no partial output).
+class Staging {
+ public:
+  explicit Staging(const fs::path& outDir) : outDir_(outDir) {
+    std::error_code ec;
+    fs::create_directories(outDir_, ec);
+    if (ec || !fs::is_directory(outDir_)) {
+      throw IoError(outDir_.string() + ": cannot create the output folder (" + ec.message() + ")");
+    }
+    dir_ = outDir_ / (".duplexfit-tmp-" + std::to_string(getpid()));
+    fs::create_directory(dir_, ec);
+    if (ec) throw IoError(outDir_.string() + ": the output folder is not writable (" + ec.message() + ")");
+  }
+  ~Staging() {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+  Staging(const Staging&) = delete;
+  Staging& operator=(const Staging&) = delete;
+  std::string path(const std::string& name) {
+    names_.push_back(name);
+    return (dir_ / name).string();
+  }
+  void commit() {
+    for (const std::string& n : names_) {
+      std::error_code ec;
+      fs::rename(dir_ / n, outDir_ / n, ec);
+      if (ec) throw IoError((outDir_ / n).string() + ": cannot move the output into place (" + ec.message() + ")");
+    }
+  }
+
+ private:
+  fs::path outDir_, dir_;
+  std::vector<std::string> names_;
+};
+
+Device openDevice(Args& args, const std::function<void(const std::string&)>& log) {
+  const std::string spec = args.str("device", "");
+  const Device d = spec.empty() ? Device::openDefault() : Device::open(spec);
+  log("device: " + d.description());
+  return d;
+}
+
+void writeTopology(JsonWriter& w, const MeshTopology& t) {
+  w.beginObject()
+      .field("vertices", t.vertices)
+      .field("faces", t.faces)
+      .field("components", t.components)
+      .field("watertight", t.watertight())
+      .field("manifold", t.manifold())
+      .field("oriented", t.oriented())
+      .field("euler_characteristic", static_cast<long long>(t.eulerCharacteristic))
+      .endObject();
+}
+
+std::string meshExtension(Args& args) {
+  const std::string f = args.str("format", "ply");
+  if (f != "ply" && f != "obj" && f != "stl") throw UsageError("--format must be ply, obj or stl");
+  return "." + f;
+}
+
+}  // namespace
+
+int cmdFit(Args& args) {
+  const auto start = Clock::now();
+  const bool quiet = args.flag("quiet");
+  auto log = [quiet](const std::string& s) {
+    if (!quiet) std::cerr << s << std::endl;
+  };
+  FitOptions options;
+  options.offsets = parseList(args.str("offset", ""), "offset");
+  options.offsetsRelative = args.flag("offset-rel");
+  options.normalsInward = args.flag("normals-inward");
+  options.validityTolerance = args.num("validity-tol", options.validityTolerance);
+  options.levels = static_cast<int>(args.integer("levels", 0));
+  options.alpha = args.num("alpha", options.alpha);
+  options.smoothing = args.num("smoothing", 0.0);
+  options.fitTolerance = args.num("fit-tol", 0.0);
+  options.precision = parsePrecision(args.str("precision", "float").c_str());
+  options.solver.relativeTolerance = args.num("tol", 0.0);
+  options.solver.maxIterations = static_cast<int>(args.integer("max-iterations", options.solver.maxIterations));
+  options.dropZeroNormalPoints = args.flag("drop-zero-normals");
+  SurfaceOptions surface;
+  surface.cell = args.num("cell", 0.0);
+  surface.resolution = static_cast<int>(args.integer("resolution", 0));
+  surface.precision = options.precision;
+  const std::string ext = meshExtension(args);
+  const bool strict = args.flag("strict");
+  const fs::path outDir = args.str("output", ".");
+  const Device device = openDevice(args, log);
+  args.finish(1);
+  if (args.positional().empty()) throw UsageError("fit needs an input cloud: duplexfit fit INPUT --offset D");
+  const std::string input = args.positional()[0];
+
+  Staging staging(outDir);  // fails early, before any work, if the folder is unusable
+
+  auto t = Clock::now();
+  PointCloudFile file = readPointCloudWithReport(input);
+  const std::size_t merged = file.points.mergeDuplicates();
+  log("read " + std::to_string(file.report.points) + " points from " + input + " (" +
+      std::to_string(merged) + " duplicates merged) in " + std::to_string(since(t)) + " s");
+  const double readSeconds = since(t);
+
+  FitResult result = fit(device, file.points, options, [&](const FitProgress& p) {
+    if (quiet) return true;
+    if (p.stage == "solve" && p.iteration > 0) {
+      std::cerr << "  level " << p.level << "/" << p.levels << "  CG iteration " << p.iteration << "  residual "
+                << p.residual << "\n";
+    } else if (p.level > 0) {
+      std::cerr << "level " << p.level << "/" << p.levels << ": " << p.stage
+                << (p.message.empty() ? "" : " (" + p.message + ")") << "\n";
+    } else {
+      std::cerr << p.stage << (p.message.empty() ? "" : ": " + p.message) << "\n";
+    }
+    return true;
+  });
+  FitReport& rep = result.report;
+  rep.duplicatesMerged = merged;
+  for (const LevelReport& l : rep.levelReports) {
+    if (l.solve.iterations > 0 && !l.solve.converged) {
+      log("warning: level " + std::to_string(l.level) + " CG did not converge (" + stopReasonName(l.solve.reason) +
+          ", residual " + std::to_string(l.solve.relativeResidual) + ")");
+    }
+  }
+
+  t = Clock::now();
+  std::vector<double> isos{0.0};
+  isos.insert(isos.end(), rep.offsets.begin(), rep.offsets.end());
+  log("polygonizing " + std::to_string(isos.size()) + " level sets ...");
+  const SurfaceResult surfaces = extractSurfaces(device, result.field, isos, surface);
+  const double meshSeconds = since(t);
+  log("grid " + std::to_string(surfaces.grid.cells.x()) + "x" + std::to_string(surfaces.grid.cells.y()) + "x" +
+      std::to_string(surfaces.grid.cells.z()) + ", " + std::to_string(100.0 * surfaces.stats.evaluatedFraction()) +
+      "% of the nodes evaluated, " + std::to_string(meshSeconds) + " s");
+
+  t = Clock::now();
+  std::vector<std::string> meshNames;
+  std::vector<MeshTopology> topo;
+  for (std::size_t i = 0; i < surfaces.meshes.size(); ++i) {
+    const std::string name = i == 0 ? "zero" + ext : "offset" + std::to_string(i) + ext;
+    writeMesh(staging.path(name), surfaces.meshes[i]);
+    meshNames.push_back(name);
+    topo.push_back(analyzeTopology(surfaces.meshes[i]));
+  }
+  result.field.save(staging.path("field.dpxf"));
+
+  std::ostringstream json;
+  JsonWriter w(json);
+  w.beginObject().field("input", input).field("points", file.report.points).field("duplicates_merged", merged);
+  w.field("zero_normals", rep.zeroNormals).field("device", rep.device).field("precision", rep.precision);
+  w.key("offsets").beginArray();
+  for (double d : rep.offsets) w.value(d);
+  w.endArray();
+  w.field("off_surface_side", rep.offSurfaceSide).field("sigma0", rep.sigma0).field("sigma1", rep.sigma1);
+  w.field("levels", rep.levels).field("stopped_early", rep.stoppedEarly);
+  w.key("level_reports").beginArray();
+  for (const LevelReport& l : rep.levelReports) {
+    w.beginObject().field("level", l.level).field("sigma", l.sigma).field("surface_points", l.surfacePoints);
+    w.key("offset_candidates").beginArray();
+    for (auto v : l.offsetCandidates) w.value(v);
+    w.endArray().key("offset_kept").beginArray();
+    for (auto v : l.offsetKept) w.value(v);
+    w.endArray();
+    w.field("off_surface_candidates", l.offSurfaceCandidates).field("off_surface_kept", l.offSurfaceKept);
+    w.field("merged_centres", l.mergedCentres).field("centres", l.centres).field("nonzeros", l.nonZeros);
+    w.field("max_residual_before", l.maxResidualBefore);
+    w.key("cg").beginObject().field("converged", l.solve.converged).field("stop_reason", stopReasonName(l.solve.reason));
+    w.field("iterations", l.solve.iterations).field("relative_residual", l.solve.relativeResidual);
+    w.field("tolerance", l.solve.tolerance).endObject();
+    w.key("seconds").beginObject().field("constraints", l.secondsConstraints).field("residual", l.secondsResidual);
+    w.field("assembly", l.secondsAssembly).field("solve", l.secondsSolve).endObject();
+    w.endObject();
+  }
+  w.endArray();
+  w.field("E0", rep.e0).key("Edelta").beginArray();
+  for (double e : rep.eDelta) w.value(e);
+  w.endArray();
+  w.key("meshes").beginArray();
+  for (std::size_t i = 0; i < meshNames.size(); ++i) {
+    w.beginObject().field("file", meshNames[i]).field("iso", isos[i]).key("topology");
+    writeTopology(w, topo[i]);
+    w.endObject();
+  }
+  w.endArray();
+  w.key("grid").beginObject().field("nx", surfaces.grid.cells.x()).field("ny", surfaces.grid.cells.y());
+  w.field("nz", surfaces.grid.cells.z()).field("cell", surfaces.grid.cellSize().maxCoeff());
+  w.field("evaluated_fraction", surfaces.stats.evaluatedFraction()).endObject();
+  w.key("seconds").beginObject().field("read", readSeconds).field("hierarchy", rep.secondsHierarchy);
+  w.field("fit", rep.secondsTotal).field("polygonize", meshSeconds).field("write", since(t));
+  w.field("total", since(start)).endObject();
+  w.endObject();
+  {
+    AtomicFile f(staging.path("report.json"));
+    f.write(json.str());
+    f.commit();
+  }
+  staging.commit();
+
+  std::cout << std::setprecision(4) << "fit " << input << ": " << file.report.points << " points, " << rep.levels
+            << " levels, E0 " << rep.e0;
+  for (std::size_t j = 0; j < rep.eDelta.size(); ++j) std::cout << ", E(" << rep.offsets[j] << ") " << rep.eDelta[j];
+  std::cout << ", " << since(start) << " s\n";
+  for (std::size_t i = 0; i < meshNames.size(); ++i) {
+    std::cout << "  " << (outDir / meshNames[i]).string() << "  iso " << isos[i] << ": " << topo[i].faces
+              << " triangles, " << topo[i].components << " component(s), "
+              << (topo[i].watertight() && topo[i].manifold() ? "watertight 2-manifold" : "NOT watertight/manifold")
+              << "\n";
+  }
+  std::cout << "  " << (outDir / "field.dpxf").string() << ", " << (outDir / "report.json").string() << "\n";
+  bool converged = true;
+  for (const LevelReport& l : rep.levelReports) converged = converged && (l.solve.iterations == 0 || l.solve.converged);
+  return strict && !converged ? kNumerical : 0;
+}
+
+int cmdMesh(Args& args) {
+  const bool quiet = args.flag("quiet");
+  auto log = [quiet](const std::string& s) {
+    if (!quiet) std::cerr << s << std::endl;
+  };
+  const double iso = args.num("iso", 0.0);
+  SurfaceOptions surface;
+  surface.cell = args.num("cell", 0.0);
+  surface.resolution = static_cast<int>(args.integer("resolution", 0));
+  surface.precision = parsePrecision(args.str("precision", "float").c_str());
+  const std::string out = args.str("output", "mesh.ply");
+  const Device device = openDevice(args, log);
+  args.finish(1);
+  if (args.positional().empty()) throw UsageError("mesh needs a field file: duplexfit mesh FIELD --iso V -o OUT");
+  const ImplicitField field = ImplicitField::load(args.positional()[0]);
+  const SurfaceResult s = extractSurfaces(device, field, {iso}, surface);
+  writeMesh(out, s.meshes[0]);
+  const MeshTopology t = analyzeTopology(s.meshes[0]);
+  std::cout << out << ": iso " << iso << ", " << t.faces << " triangles, " << t.components << " component(s), "
+            << (t.watertight() && t.manifold() ? "watertight 2-manifold" : "NOT watertight/manifold") << "\n";
+  return 0;
+}
+
+}  // namespace duplexfit::cli

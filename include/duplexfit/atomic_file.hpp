@@ -1,0 +1,61 @@
+// AtomicFile: writes a file under a temporary name next to its destination and renames it into
+// place on commit(), so that readers never see a half-written output and a failed write leaves
+// nothing.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace duplexfit {
+
+/// A file written atomically: the bytes go to "<path>.tmp-<pid>-<n>" in the destination's folder;
+/// commit() flushes, fsyncs and renames it onto `path`. Destroying an uncommitted AtomicFile (an
+/// exception, an early return) removes the temporary file and leaves `path` untouched.
+///
+///     AtomicFile out("mesh.ply");
+///     out.write(header);
+///     out.write(data.data(), data.size());
+///     out.commit();
+class AtomicFile {
+ public:
+  /// Creates the temporary file next to `path`.
+  /// @throws IoError naming `path` when its folder is missing or not writable.
+  explicit AtomicFile(std::string path);
+  /// Removes the temporary file unless commit() succeeded. Never throws.
+  ~AtomicFile();
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+
+  /// Appends `bytes` bytes (buffered). @throws IoError on a write error (e.g. disk full) or after
+  /// commit().
+  void write(const void* data, std::size_t bytes);
+  /// Appends text. @throws IoError as write(data, bytes).
+  void write(std::string_view text) { write(text.data(), text.size()); }
+
+  /// Flushes, fsyncs and closes the temporary file, then renames it onto path() (replacing an
+  /// existing file). On failure the temporary file is removed. @throws IoError naming path().
+  void commit();
+
+  /// The destination path.
+  const std::string& path() const noexcept { return path_; }
+  /// The temporary file's path ("<path>.tmp-<pid>-<n>").
+  const std::string& tempPath() const noexcept { return tempPath_; }
+  /// True once commit() has succeeded.
+  bool committed() const noexcept { return committed_; }
+
+ private:
+  void flushBuffer();
+  void writeAll(const char* data, std::size_t bytes);
+  void discard() noexcept;
+  [[noreturn]] void fail(const std::string& what, int error);
+
+  std::string path_;
+  std::string tempPath_;
+  int fd_ = -1;
+  bool committed_ = false;
+  std::vector<char> buffer_;
+};
+
+}  // namespace duplexfit

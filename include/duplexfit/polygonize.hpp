@@ -1,0 +1,146 @@
+// Polygonisation of level sets of a scalar field over a regular grid (docs: algorithm.md §7,
+// §12.15): marching tetrahedra on a Kuhn (Freudenthal) triangulation of the grid, with node values
+// sampled in large batches through a callback and, optionally, only near the requested level sets.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "duplexfit/mesh.hpp"
+#include "duplexfit/types.hpp"
+
+namespace duplexfit {
+
+/// Evaluates the field at #Q query points: fills values (resized by the callee to Q) with f(queries
+/// row i). Called from the calling thread only, with batches of up to PolygonizeOptions::batchSize
+/// points (whole coarse lattices, whole groups of refined blocks, or z-slabs of tiles).
+using FieldSampler = std::function<void(const Points& queries, Eigen::VectorXd& values)>;
+
+/// Progress report: fraction in [0, 1]. Return false to cancel (polygonize then throws Cancelled).
+using PolygonizeProgress = std::function<bool(double fraction)>;
+
+/// A regular grid of cells(0)×cells(1)×cells(2) box-shaped cells spanning box exactly; nodes are
+/// numbered 0..cells(a) along each axis a, node i sits at box.min() + i·cellSize() (the last node
+/// is box.max() exactly).
+struct GridSpec {
+  /// Upper bound on (cells(0)+1)(cells(1)+1)(cells(2)+1), about 1290³ nodes.
+  static constexpr std::int64_t kMaxNodes = std::int64_t{1} << 31;
+
+  Eigen::AlignedBox3d box;                          ///< model units
+  Eigen::Vector3i cells = Eigen::Vector3i::Zero();  ///< cells per axis, each ≥ 1
+
+  /// Cubic cells of edge `cell`: each axis gets ⌈extent/cell⌉ cells (at least one) and the box is
+  /// grown symmetrically about its centre to exactly cells·cell, so the grid covers the input box.
+  /// @throws InvalidArgument when cell is not finite and positive, the box is empty or not finite,
+  ///         or the grid would exceed kMaxNodes.
+  static GridSpec fromCellSize(const Eigen::AlignedBox3d& box, double cell);
+
+  /// @throws InvalidArgument naming the field: a cell count < 1, a box corner that is not finite,
+  ///         box.max() ≤ box.min() on an axis, or more than kMaxNodes nodes.
+  void validate() const;
+
+  /// Edge lengths of one cell, (box.max() − box.min()) / cells.
+  Eigen::Vector3d cellSize() const;
+  /// Number of nodes, the product of cells(a) + 1.
+  std::int64_t nodeCount() const;
+  /// Position of node (i, j, k), 0 ≤ i ≤ cells(0) etc. (no range check).
+  Eigen::Vector3d node(int i, int j, int k) const;
+};
+
+/// How polygonize samples the field.
+struct PolygonizeOptions {
+  /// true: sample a coarse lattice, then refine only blocks that may contain a crossing (below);
+  /// false: sample every node (reference mode for checks; 4 bytes of storage per node).
+  bool adaptive = true;
+  /// Assumed bound L on |∇f| over the box (f approximates a distance, so |∇f| ≈ 1; 2 is a safety
+  /// factor). A block is skipped when, for every iso value c, all 8 corners lie on one side of c
+  /// and the balls of radius |f(corner) − c| / L around the corners cover the block, i.e. some
+  /// point m of the block has |m − corner| < |f(corner) − c| / L for all corners (tried: the
+  /// centre, which gives the rule "every corner is farther than L × half the diagonal from c", and
+  /// a point moved toward the corners nearest to c). Under |∇f| ≤ L no point of such a block
+  /// reaches c. Where the field is steeper, a surface that crosses skipped blocks is still followed
+  /// cell by cell and closed (PolygonizeStats::continuedCells > 0 tells), but a component lying
+  /// wholly in skipped blocks is missed. Must be finite and > 0; use adaptive = false for arbitrary
+  /// fields.
+  double lipschitz = 2.0;
+  /// Cells per coarse block edge: 2, 4, 8, 16, 32 or 64 (also the edge of the storage tiles, in
+  /// nodes). Blocks that are not skipped are halved recursively (octree style, tested again at each
+  /// level) down to blocks of 2 cells per edge, whose nodes are all sampled.
+  int coarseStep = 8;
+  /// Most points per sampler call (≥ 1). Sampling requests are gathered across many blocks up to
+  /// this size.
+  std::int64_t batchSize = std::int64_t{1} << 20;
+  /// OpenMP threads for extraction; 0 = the OpenMP default. The output does not depend on it.
+  int threads = 0;
+};
+
+/// What the sampling and extraction did.
+struct PolygonizeStats {
+  std::int64_t totalNodes = 0;      ///< nodes of the grid
+  std::int64_t evaluatedNodes = 0;  ///< nodes passed to the sampler (each at most once)
+  std::int64_t samplerCalls = 0;    ///< number of sampler invocations
+  std::int64_t coarseBlocks = 0;    ///< coarse blocks (adaptive mode; 0 otherwise)
+  std::int64_t refinedBlocks = 0;   ///< coarse blocks not skipped for every iso value
+  /// Cells sampled to close surfaces that left the refined region: 0 unless |∇f| exceeded
+  /// PolygonizeOptions::lipschitz somewhere (then consider a larger bound).
+  std::int64_t continuedCells = 0;
+  std::int64_t storageBytes = 0;   ///< memory held by the sampled node values (tiles + lattice)
+  double samplingSeconds = 0.0;    ///< wall time of the sampling phase, sampler calls included
+  double samplerSeconds = 0.0;     ///< wall time spent inside the sampler
+  double extractionSeconds = 0.0;  ///< wall time of triangle extraction and welding
+  double totalSeconds = 0.0;
+  /// evaluatedNodes / totalNodes.
+  double evaluatedFraction() const noexcept {
+    return totalNodes > 0 ? static_cast<double>(evaluatedNodes) / static_cast<double>(totalNodes)
+                          : 0.0;
+  }
+};
+
+/// The meshes of polygonize, one per iso value in input order, with the run's statistics.
+struct PolygonizeResult {
+  std::vector<Mesh> meshes;
+  PolygonizeStats stats;
+};
+
+/// Extracts the level sets {f = c} for every c in isoValues from one sampling pass.
+///
+/// Each cell is split into 6 tetrahedra around its main diagonal (min to max corner), so
+/// neighbouring cells agree on face diagonals, and each tetrahedron is contoured by linear
+/// interpolation. A node counts as inside when f(node) ≥ c (a symbolic perturbation: values exactly
+/// equal to c never make ambiguous or degenerate topology, though a vertex may then sit on a node
+/// and a triangle may have zero area). Each mesh is therefore watertight, 2-manifold and
+/// consistently oriented with normals toward decreasing f (outward from {f > c}; positive
+/// signedVolume), except where the surface reaches the grid boundary: it is left open there, so pad
+/// the box by a few cells when closed meshes are needed. Vertices lie on grid edges (axis edges,
+/// face and main diagonals of the tetrahedra), are shared by all incident triangles (welded by
+/// edge), and are placed by linear interpolation of the node values; node values are stored in
+/// single precision.
+///
+/// A cell is contoured only when all 8 of its nodes were sampled: in adaptive mode, the cells of
+/// refined blocks plus every cell that a contoured surface enters through a face (so meshes stay
+/// closed even where the Lipschitz assumption fails; see PolygonizeOptions::lipschitz). Under the
+/// assumption the adaptive output is identical to the non-adaptive one. The output is
+/// deterministic: vertices and faces are ordered by grid cell (z, then y, then x) and vertex ids by
+/// first use, independent of the thread count, the batch size, the coarse step and the mode.
+///
+/// Memory: node values take 4 bytes per sampled node (tiles of coarseStep³ nodes), plus the meshes
+/// and, during extraction, about as much again for per-thread mesh pieces.
+///
+/// @param sampler    the field (see FieldSampler); exceptions it throws propagate
+/// @param grid       the grid, validated first
+/// @param isoValues  the levels c, at least one, finite; duplicates give duplicate meshes
+/// @param options    sampling options, validated first
+/// @param progress   optional; called from the calling thread between batches and phases
+/// @throws InvalidArgument for a bad grid, option or iso list, for a sampler that returns the wrong
+///         number of values, or for a non-finite value (naming the grid node and its position);
+///         Cancelled when progress returns false.
+PolygonizeResult polygonize(const FieldSampler& sampler, const GridSpec& grid,
+                            const std::vector<double>& isoValues,
+                            const PolygonizeOptions& options = {},
+                            const PolygonizeProgress& progress = {});
+
+}  // namespace duplexfit

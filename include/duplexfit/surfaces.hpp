@@ -1,0 +1,40 @@
+// Extraction of a fitted field's level sets (the surface and every offset surface) as meshes: the field is
+// sampled on the device over the whole enlarged box (algorithm.md §7) and polygonized in one pass.
+#pragma once
+
+#include <vector>
+
+#include "duplexfit/device.hpp"
+#include "duplexfit/field.hpp"
+#include "duplexfit/polygonize.hpp"
+
+namespace duplexfit {
+
+struct SurfaceOptions {
+  /// Grid cell size in input units; 0: min(σ_M/2, min|δ|/4) (algorithm.md §7), capped by maxResolution.
+  double cell = 0.0;
+  /// Cells along the box's longest side; overrides `cell` when > 0.
+  int resolution = 0;
+  /// Upper bound on the automatic resolution (cells along the longest side).
+  int maxResolution = 512;
+  Precision precision = Precision::Float;
+  PolygonizeOptions polygonize{};
+};
+
+/// The grid used for a field: its input bounds enlarged by the largest outward offset plus three cells
+/// (so every level set closes inside the box), with the cell size from the options.
+GridSpec surfaceGrid(const ImplicitField& field, const std::vector<double>& isoValues,
+                     const SurfaceOptions& options = {});
+
+struct SurfaceResult {
+  std::vector<Mesh> meshes;  ///< one per iso value, in the order given
+  GridSpec grid;
+  PolygonizeStats stats;
+};
+
+/// Meshes of {f = iso} for every iso value, in input coordinates, outward oriented (normals toward
+/// decreasing f). @throws InvalidArgument (empty iso list, bad options), DeviceError, Cancelled.
+SurfaceResult extractSurfaces(const Device& device, const ImplicitField& field, const std::vector<double>& isoValues,
+                              const SurfaceOptions& options = {}, const PolygonizeProgress& progress = {});
+
+}  // namespace duplexfit

@@ -1,0 +1,127 @@
+// AtomicFile on POSIX: O_EXCL temporary file next to the destination, fsync, rename(2) (atomic
+// within one file system), then a best-effort fsync of the folder so the rename itself is durable.
+#include "duplexfit/atomic_file.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <system_error>
+
+#include "duplexfit/error.hpp"
+
+namespace duplexfit {
+
+namespace {
+
+constexpr std::size_t kBufferSize = std::size_t{1} << 20;
+
+std::string folderOf(const std::string& path) {
+  const std::string parent = std::filesystem::path(path).parent_path().string();
+  return parent.empty() ? std::string(".") : parent;
+}
+
+}  // namespace
+
+AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {
+  if (path_.empty()) throw IoError("AtomicFile: empty output path");
+  std::error_code ec;
+  if (std::filesystem::is_directory(path_, ec)) {
+    throw IoError(path_ + ": cannot write: it is a folder");
+  }
+  static std::atomic<unsigned long> counter{0};
+  tempPath_ = path_ + ".tmp-" + std::to_string(static_cast<long>(::getpid())) + "-" +
+              std::to_string(counter.fetch_add(1));
+  fd_ = ::open(tempPath_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+  if (fd_ < 0) {
+    const int error = errno;
+    const std::string folder = folderOf(path_);
+    if (error == ENOENT || error == ENOTDIR) {
+      throw IoError(path_ + ": cannot write: folder '" + folder + "' does not exist");
+    }
+    if (error == EACCES || error == EPERM || error == EROFS) {
+      throw IoError(path_ + ": cannot write: folder '" + folder + "' is not writable (" +
+                    std::strerror(error) + ")");
+    }
+    throw IoError(path_ + ": cannot create the temporary file '" + tempPath_ +
+                  "': " + std::strerror(error));
+  }
+  buffer_.reserve(kBufferSize);
+}
+
+AtomicFile::~AtomicFile() { discard(); }
+
+void AtomicFile::discard() noexcept {
+  if (fd_ >= 0) {
+    ::close(fd_);
+    fd_ = -1;
+    if (!committed_) ::unlink(tempPath_.c_str());
+  }
+}
+
+void AtomicFile::fail(const std::string& what, int error) {
+  discard();
+  throw IoError(path_ + ": " + what + ": " + std::strerror(error));
+}
+
+void AtomicFile::write(const void* data, std::size_t bytes) {
+  if (fd_ < 0) {
+    throw IoError(path_ + (committed_ ? ": write after commit" : ": write after a failed write"));
+  }
+  const auto* p = static_cast<const char*>(data);
+  if (buffer_.size() + bytes > kBufferSize) flushBuffer();
+  if (bytes >= kBufferSize) {
+    writeAll(p, bytes);
+  } else {
+    buffer_.insert(buffer_.end(), p, p + bytes);
+  }
+}
+
+void AtomicFile::writeAll(const char* data, std::size_t bytes) {
+  std::size_t done = 0;
+  while (done < bytes) {
+    const ssize_t n = ::write(fd_, data + done, bytes - done);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      fail("write error", errno);
+    }
+    done += static_cast<std::size_t>(n);
+  }
+}
+
+void AtomicFile::flushBuffer() {
+  writeAll(buffer_.data(), buffer_.size());
+  buffer_.clear();
+}
+
+void AtomicFile::commit() {
+  if (fd_ < 0) {
+    throw IoError(path_ + (committed_ ? ": already committed" : ": commit after a failed write"));
+  }
+  flushBuffer();
+  if (::fsync(fd_) != 0) fail("fsync failed", errno);
+  const int fd = fd_;
+  fd_ = -1;
+  if (::close(fd) != 0) {
+    const int error = errno;
+    ::unlink(tempPath_.c_str());
+    throw IoError(path_ + ": close failed: " + std::strerror(error));
+  }
+  if (std::rename(tempPath_.c_str(), path_.c_str()) != 0) {
+    const int error = errno;
+    ::unlink(tempPath_.c_str());
+    throw IoError(path_ + ": cannot rename '" + tempPath_ + "' onto it: " + std::strerror(error));
+  }
+  committed_ = true;
+  // Make the new directory entry durable too; failure here cannot undo the rename, so ignore it.
+  const int dir = ::open(folderOf(path_).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dir >= 0) {
+    ::fsync(dir);
+    ::close(dir);
+  }
+}
+
+}  // namespace duplexfit
