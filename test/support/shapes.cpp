@@ -216,9 +216,8 @@ double sigmaForNonZeros(Shape shape, int n, double delta, double nnzPerRow) {
   }
   const double guess = hi;
 
-  // Refine against the exact entry thresholds of sampled rows (curvature, layers, edges of the
-  // torus): the wanted σ lies between the k-th and (k+1)-th smallest threshold, k = nnzPerRow ×
-  // sampled rows.
+  // Refine against the exact entry thresholds of sampled rows (the sheet model ignores curvature):
+  // the wanted σ lies between the k-th and (k+1)-th smallest threshold, k = nnzPerRow × rows.
   const PairThresholds pairs(shape, n, delta);
   const auto k =
       static_cast<std::size_t>(std::llround(nnzPerRow * static_cast<double>(pairs.sampledRows())));

@@ -1,0 +1,367 @@
+// Marching tetrahedra with edge-keyed vertex welding. Cells are visited in global (k, j, i) order,
+// split into z-ranges processed in parallel; vertices get ids in order of first appearance, which
+// makes the output independent of the chunking, the thread count and the sampled region.
+#include "extract.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <exception>
+#include <limits>
+#include <utility>
+#include <vector>
+
+#include "duplexfit/error.hpp"
+#include "kuhn_cases.hpp"
+#include "sampling.hpp"
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+namespace duplexfit::detail {
+
+namespace {
+
+/// Open-addressing hash map from edge keys (start node id · 8 + direction bits) to local vertex
+/// ids, linear probing, at most half full; key and id share a slot so that a probe touches one
+/// line.
+class EdgeMap {
+ public:
+  static constexpr std::uint64_t kEmpty = ~std::uint64_t{0};
+
+  EdgeMap() { rehash(10); }
+
+  std::int32_t find(std::uint64_t key) const {
+    for (std::size_t s = slot(key);; s = (s + 1) & mask_) {
+      if (slots_[s].key == key) return slots_[s].id;
+      if (slots_[s].key == kEmpty) return -1;
+    }
+  }
+  /// The id stored for key; stores `id` first when key is absent (inserted = true).
+  std::int32_t insert(std::uint64_t key, std::int32_t id, bool& inserted) {
+    if (2 * (size_ + 1) > slots_.size()) rehash(bits_ + 1);
+    for (std::size_t s = slot(key);; s = (s + 1) & mask_) {
+      if (slots_[s].key == key) {
+        inserted = false;
+        return slots_[s].id;
+      }
+      if (slots_[s].key == kEmpty) {
+        slots_[s] = {key, id};
+        ++size_;
+        inserted = true;
+        return id;
+      }
+    }
+  }
+
+ private:
+  struct Slot {
+    std::uint64_t key;
+    std::int32_t id;
+  };
+  std::size_t slot(std::uint64_t key) const {
+    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> (64 - bits_));
+  }
+  void rehash(int bits) {
+    std::vector<Slot> old(std::size_t{1} << bits, Slot{kEmpty, -1});
+    old.swap(slots_);
+    bits_ = bits;
+    mask_ = slots_.size() - 1;
+    for (const Slot& o : old) {
+      if (o.key == kEmpty) continue;
+      std::size_t t = slot(o.key);
+      while (slots_[t].key != kEmpty) t = (t + 1) & mask_;
+      slots_[t] = o;
+    }
+  }
+
+  std::vector<Slot> slots_;
+  std::size_t size_ = 0, mask_ = 0;
+  int bits_ = 0;
+};
+
+using Cell = std::array<int, 3>;
+
+/// The contour of one iso value over one z-range of cells, with chunk-local vertex ids.
+struct ChunkMesh {
+  std::vector<std::uint64_t> keys;  ///< edge key of each local vertex
+  std::vector<double> xyz;          ///< 3 per vertex
+  std::vector<std::int32_t> tris;   ///< 3 local ids per triangle
+  /// (key, local id) of the vertices in the chunk's top plane (shared with the next chunk), sorted.
+  std::vector<std::pair<std::uint64_t, std::int32_t>> top;
+};
+
+/// Edge keys of the edges lying in node plane z: start node in the plane, no z direction bit.
+bool inPlane(std::uint64_t key, int z, std::int64_t planeNodes) {
+  const std::uint64_t lo = static_cast<std::uint64_t>(z * planeNodes) * 8;
+  return (key & 4) == 0 && key >= lo && key < lo + static_cast<std::uint64_t>(planeNodes) * 8;
+}
+
+class Extractor {
+ public:
+  Extractor(const NodeStore& store, const GridSpec& grid, const std::vector<double>& isos)
+      : store_(store), isos_(isos), coords_(nodeCoordinates(grid)), table_(kuhnTable()) {}
+
+  /// Contours the marked cells with z index in [z0, z1): out has one entry per iso value; open
+  /// collects unmarked cells that the surface enters from a contoured one.
+  void run(int z0, int z1, std::vector<ChunkMesh>& out, std::vector<Cell>& open) const {
+    std::vector<EdgeMap> maps(isos_.size());
+    cells(z0, z1, out, maps, open);
+    const std::int64_t planeNodes =
+        static_cast<std::int64_t>(store_.cells(0) + 1) * (store_.cells(1) + 1);
+    for (ChunkMesh& m : out) {
+      for (std::size_t v = 0; v < m.keys.size(); ++v) {
+        if (inPlane(m.keys[v], z1, planeNodes)) {
+          m.top.emplace_back(m.keys[v], static_cast<std::int32_t>(v));
+        }
+      }
+      std::sort(m.top.begin(), m.top.end());
+      m.keys.shrink_to_fit();
+      m.xyz.shrink_to_fit();
+      m.tris.shrink_to_fit();
+    }
+  }
+
+ private:
+  void cells(int z0, int z1, std::vector<ChunkMesh>& out, std::vector<EdgeMap>& maps,
+             std::vector<Cell>& open) const {
+    const int t = store_.tile();
+    const int nx = store_.cells(0), ny = store_.cells(1);
+    const std::size_t stride = static_cast<std::size_t>(t) + 1;
+    std::vector<float> rows(4 * stride);
+    std::vector<char> active(isos_.size());
+    float v[8];
+    for (int k = z0; k < z1; ++k) {
+      for (int j = 0; j < ny; ++j) {
+        for (int tx = 0; tx * t < nx; ++tx) {
+          const std::uint64_t marks = store_.rowMarks(tx * t, j, k);
+          if (marks == 0) continue;
+          const int i0 = tx * t, i1 = std::min(i0 + t, nx);
+          const int w = i1 - i0 + 1;
+          float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+          for (int r = 0; r < 4; ++r) {
+            float* row = rows.data() + static_cast<std::size_t>(r) * stride;
+            fetchRow(i0, w, j + (r & 1), k + (r >> 1), row);
+            for (int l = 0; l < w; ++l) {
+              lo = std::min(lo, row[l]);  // NaN (unsampled) compares false and is ignored
+              hi = std::max(hi, row[l]);
+            }
+          }
+          bool any = false;
+          for (std::size_t q = 0; q < isos_.size(); ++q) {
+            active[q] = static_cast<double>(lo) < isos_[q] && static_cast<double>(hi) >= isos_[q];
+            any = any || active[q];
+          }
+          if (!any) continue;
+          for (int i = i0; i < i1; ++i) {
+            if (((marks >> (i - i0)) & 1) == 0) continue;
+            bool sampled = true;
+            for (int c = 0; c < 8; ++c) {
+              v[c] = rows[static_cast<std::size_t>((c >> 1) & 3) * stride +
+                          static_cast<std::size_t>(i - i0 + (c & 1))];
+              sampled = sampled && !std::isnan(v[c]);
+            }
+            if (!sampled) continue;  // cannot happen: marked cells have all nodes sampled
+            bool crossed = false;
+            for (std::size_t q = 0; q < isos_.size(); ++q) {
+              if (!active[q]) continue;
+              const double iso = isos_[q];
+              int mask = 0;
+              for (int c = 0; c < 8; ++c) mask |= (static_cast<double>(v[c]) >= iso) << c;
+              if (mask != 0 && mask != 255) {
+                emitCell(i, j, k, v, mask, iso, out[q], maps[q]);
+                crossed = true;
+              }
+            }
+            // Where the surface leaves through a face into an unmarked cell, the Lipschitz bound
+            // was violated; report the cell so that the caller can continue the surface.
+            if (crossed) appendOpenNeighbours(store_, {i, j, k}, v, isos_, open);
+          }
+        }
+      }
+    }
+  }
+
+  /// Values of nodes i0 .. i0 + w − 1 of row (j, k), NaN where unsampled.
+  void fetchRow(int i0, int w, int j, int k, float* dst) const {
+    const int t = store_.tile();
+    const float* tile = store_.tileOf(i0, j, k);
+    const int inTile = std::min(w, t);
+    if (tile != nullptr) {
+      const float* src = tile + store_.local(i0, j, k);
+      for (int l = 0; l < inTile; ++l) dst[l] = src[l];
+    } else {
+      for (int l = 0; l < inTile; ++l) dst[l] = store_.value(i0 + l, j, k);
+    }
+    if (w > t) dst[t] = store_.value(i0 + t, j, k);
+  }
+
+  void emitCell(int i, int j, int k, const float* v, int mask, double iso, ChunkMesh& out,
+                EdgeMap& map) const {
+    std::int32_t vid[kKuhnEdgeCount];
+    std::fill(vid, vid + kKuhnEdgeCount, -1);
+    const KuhnCase& cs = table_.cases[mask];
+    for (int p = 0; p < cs.count; ++p) {
+      const KuhnPolygon& poly = cs.polygons[p];
+      std::int32_t ids[4];
+      for (int s = 0; s < poly.size; ++s) {
+        const int e = poly.edges[s];
+        if (vid[e] < 0) vid[e] = vertex(i, j, k, v, e, iso, out, map);
+        ids[s] = vid[e];
+      }
+      if (poly.size == 3) {
+        out.tris.insert(out.tris.end(), {ids[0], ids[1], ids[2]});
+      } else if (distance2(out, ids[0], ids[2]) <= distance2(out, ids[1], ids[3])) {
+        out.tris.insert(out.tris.end(), {ids[0], ids[1], ids[2], ids[0], ids[2], ids[3]});
+      } else {
+        out.tris.insert(out.tris.end(), {ids[0], ids[1], ids[3], ids[1], ids[2], ids[3]});
+      }
+    }
+  }
+
+  /// The vertex on cell edge e, created on first use: linear interpolation from the edge's start
+  /// node (lower corner) to its end node, so that every cell sharing the edge computes it alike.
+  std::int32_t vertex(int i, int j, int k, const float* v, int e, double iso, ChunkMesh& out,
+                      EdgeMap& map) const {
+    const KuhnEdge& edge = table_.edges[e];
+    const int a[3] = {i + (edge.from & 1), j + ((edge.from >> 1) & 1), k + ((edge.from >> 2) & 1)};
+    const std::uint64_t key =
+        static_cast<std::uint64_t>(store_.nodeId(a[0], a[1], a[2])) * 8 + (edge.from ^ edge.to);
+    bool inserted = false;
+    const std::int32_t id = map.insert(key, static_cast<std::int32_t>(out.keys.size()), inserted);
+    if (!inserted) return id;
+    const double f0 = static_cast<double>(v[edge.from]), f1 = static_cast<double>(v[edge.to]);
+    const double s = (iso - f0) / (f1 - f0);  // f0 and f1 straddle iso, so f1 ≠ f0
+    out.keys.push_back(key);
+    for (int d = 0; d < 3; ++d) {
+      const std::size_t n0 = static_cast<std::size_t>(a[d]);
+      const std::size_t n1 = n0 + static_cast<std::size_t>(((edge.from ^ edge.to) >> d) & 1);
+      const double x0 = coords_[d][n0], x1 = coords_[d][n1];
+      out.xyz.push_back(x0 + s * (x1 - x0));
+    }
+    return id;
+  }
+
+  static double distance2(const ChunkMesh& m, std::int32_t a, std::int32_t b) {
+    double d2 = 0.0;
+    for (int d = 0; d < 3; ++d) {
+      const double x = m.xyz[3 * static_cast<std::size_t>(a) + static_cast<std::size_t>(d)] -
+                       m.xyz[3 * static_cast<std::size_t>(b) + static_cast<std::size_t>(d)];
+      d2 += x * x;
+    }
+    return d2;
+  }
+
+  const NodeStore& store_;
+  const std::vector<double>& isos_;
+  std::array<std::vector<double>, 3> coords_;
+  const KuhnTable& table_;
+};
+
+/// Joins the chunks of one iso value, releasing them: a vertex in the plane between chunks c − 1
+/// and c (chunk c's first z) is looked up among chunk c − 1's top-plane vertices.
+Mesh merge(std::vector<ChunkMesh*>& chunks, const std::vector<int>& z0, std::int64_t planeNodes,
+           int threads) {
+  const std::size_t n = chunks.size();
+  std::vector<std::vector<std::int32_t>> global(n);
+  std::vector<std::int64_t> firstNew(n + 1, 0), firstTri(n + 1, 0);
+  std::int64_t next = 0;
+  for (std::size_t c = 0; c < n; ++c) {
+    const ChunkMesh& m = *chunks[c];
+    global[c].resize(m.keys.size());
+    firstNew[c] = next;
+    for (std::size_t v = 0; v < m.keys.size(); ++v) {
+      const std::uint64_t key = m.keys[v];
+      std::int32_t g = -1;
+      if (c > 0 && inPlane(key, z0[c], planeNodes)) {
+        const auto& top = chunks[c - 1]->top;
+        const auto it =
+            std::lower_bound(top.begin(), top.end(), std::make_pair(key, std::int32_t{0}));
+        if (it != top.end() && it->first == key) {
+          g = global[c - 1][static_cast<std::size_t>(it->second)];
+        }
+      }
+      global[c][v] = g >= 0 ? g : static_cast<std::int32_t>(next++);
+    }
+    if (c > 0) std::vector<std::pair<std::uint64_t, std::int32_t>>().swap(chunks[c - 1]->top);
+    firstTri[c + 1] = firstTri[c] + static_cast<std::int64_t>(m.tris.size() / 3);
+    if (next > std::numeric_limits<std::int32_t>::max()) {
+      throw Error("polygonize: a mesh would have more than 2^31 - 1 vertices (Faces are int32)");
+    }
+  }
+  Mesh mesh;
+  mesh.vertices.resize(next, 3);
+  mesh.faces.resize(firstTri[n], 3);
+  const int chunkCount = static_cast<int>(n);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+  for (int c = 0; c < chunkCount; ++c) {
+    const std::size_t cc = static_cast<std::size_t>(c);
+    ChunkMesh& m = *chunks[cc];
+    for (std::size_t v = 0; v < m.keys.size(); ++v) {
+      const std::int32_t g = global[cc][v];
+      if (g < firstNew[cc]) continue;  // owned by the previous chunk
+      for (int d = 0; d < 3; ++d) mesh.vertices(g, d) = m.xyz[3 * v + static_cast<std::size_t>(d)];
+    }
+    const std::size_t tris = m.tris.size() / 3;
+    for (std::size_t f = 0; f < tris; ++f) {
+      for (int d = 0; d < 3; ++d) {
+        mesh.faces(firstTri[cc] + static_cast<std::int64_t>(f), d) =
+            global[cc][static_cast<std::size_t>(m.tris[3 * f + static_cast<std::size_t>(d)])];
+      }
+    }
+    m = ChunkMesh();
+    std::vector<std::int32_t>().swap(global[cc]);
+  }
+  return mesh;
+}
+
+}  // namespace
+
+Extraction extractMeshes(NodeStore& store, const GridSpec& grid,
+                         const std::vector<double>& isoValues, int threads) {
+#ifdef _OPENMP
+  const int nt = threads > 0 ? threads : omp_get_max_threads();
+#else
+  const int nt = 1;
+#endif
+  const int nz = store.cells(2);
+  // Several thin chunks per thread: load balance, and per-chunk edge maps that stay in cache (the
+  // output does not depend on the split).
+  const int thickness = std::clamp((nz + 8 * nt - 1) / (8 * nt), 1, 4);
+  std::vector<int> z0;
+  for (int z = 0; z < nz; z += thickness) z0.push_back(z);
+  const int chunkCount = static_cast<int>(z0.size());
+  std::vector<std::vector<ChunkMesh>> chunks(z0.size());
+  std::vector<std::vector<Cell>> open(z0.size());
+  const Extractor extractor(store, grid, isoValues);
+  std::exception_ptr error;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
+  for (int c = 0; c < chunkCount; ++c) {
+    try {
+      const std::size_t cc = static_cast<std::size_t>(c);
+      chunks[cc].resize(isoValues.size());
+      extractor.run(z0[cc], std::min(z0[cc] + thickness, nz), chunks[cc], open[cc]);
+    } catch (...) {
+#pragma omp critical(duplexfit_extract_error)
+      if (!error) error = std::current_exception();
+    }
+  }
+  if (error) std::rethrow_exception(error);
+
+  Extraction result;
+  for (auto& o : open) result.openCells.insert(result.openCells.end(), o.begin(), o.end());
+  if (!result.openCells.empty()) return result;  // the caller samples more and extracts again
+
+  const std::int64_t planeNodes =
+      static_cast<std::int64_t>(store.cells(0) + 1) * (store.cells(1) + 1);
+  store.release();  // the node values are no longer needed: make room for the meshes
+  for (std::size_t q = 0; q < isoValues.size(); ++q) {
+    std::vector<ChunkMesh*> perIso;
+    for (auto& c : chunks) perIso.push_back(&c[q]);
+    result.meshes.push_back(merge(perIso, z0, planeNodes, nt));
+  }
+  return result;
+}
+
+}  // namespace duplexfit::detail

@@ -1,0 +1,27 @@
+// Marching tetrahedra over the sampled cells of a NodeStore: one welded, oriented mesh per iso
+// value, built in parallel over z-ranges of cells and merged deterministically.
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include "duplexfit/mesh.hpp"
+#include "duplexfit/polygonize.hpp"
+#include "node_store.hpp"
+
+namespace duplexfit::detail {
+
+/// Meshes, one per iso value, or (with no meshes) the unmarked cells that contoured surfaces enter.
+struct Extraction {
+  std::vector<Mesh> meshes;
+  std::vector<std::array<int, 3>> openCells;
+};
+
+/// Contours every marked cell for each iso value (see polygonize()). When a surface leaves the
+/// marked cells through a face that is not on the grid boundary, returns those neighbour cells
+/// (possibly repeated) instead of meshes; otherwise returns the meshes and releases the store's
+/// memory. threads: OpenMP threads, 0 = default; the result does not depend on it.
+Extraction extractMeshes(NodeStore& store, const GridSpec& grid,
+                         const std::vector<double>& isoValues, int threads);
+
+}  // namespace duplexfit::detail

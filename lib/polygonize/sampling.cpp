@@ -1,0 +1,444 @@
+// Node sampling for polygonisation (algorithm.md §7): requests are gathered into large batches for
+// the sampler (a device evaluates whole batches), validated and stored as floats in a NodeStore.
+// The adaptive mode refines coarse blocks octree-style and skips blocks that cannot contain a
+// crossing of any iso value under the bound |∇f| ≤ lipschitz.
+#include "sampling.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "duplexfit/error.hpp"
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+namespace duplexfit::detail {
+
+namespace {
+
+/// Cells handled by one group of coarse block layers: bounds the block lists of the refinement.
+constexpr std::int64_t kGroupCells = std::int64_t{1} << 24;
+
+/// A box of cells [lo, hi) per axis; its corners are the nodes lo and hi.
+struct Block {
+  std::array<int, 3> lo;
+  std::array<int, 3> hi;
+};
+
+/// Collects node requests and evaluates them in batches.
+class BatchSampler {
+ public:
+  BatchSampler(const FieldSampler& sampler, const GridSpec& grid, NodeStore& store,
+               PolygonizeStats& stats, const PolygonizeOptions& options,
+               std::function<void()> onFlush)
+      : sampler_(sampler),
+        store_(store),
+        stats_(stats),
+        batch_(static_cast<std::size_t>(options.batchSize)),
+        onFlush_(std::move(onFlush)),
+        coords_(nodeCoordinates(grid)) {
+#ifdef _OPENMP
+    threads_ = options.threads > 0 ? options.threads : omp_get_max_threads();
+#endif
+  }
+
+  /// Requests node (i, j, k) of the fine grid unless it is sampled or already requested.
+  void request(int i, int j, int k) {
+    float& v = store_.ensureTile(i, j, k)[store_.local(i, j, k)];
+    if (!std::isnan(v)) return;
+    v = NodeStore::kPending;
+    push(i, j, k);
+  }
+  /// Requests a node known to be unsampled (no duplicate check).
+  void push(int i, int j, int k) {
+    pending_.push_back({i, j, k});
+    if (pending_.size() >= batch_) flush();
+  }
+  /// Switches the destination between the coarse lattice and the tiles (flushes first).
+  void setCoarseTarget(bool coarse) {
+    flush();
+    coarse_ = coarse;
+  }
+
+  void flush() {
+    if (pending_.empty()) return;
+    const Eigen::Index m = static_cast<Eigen::Index>(pending_.size());
+    queries_.resize(m, 3);
+#pragma omp parallel for schedule(static) num_threads(threads_)
+    for (Eigen::Index r = 0; r < m; ++r) {
+      const auto& n = pending_[static_cast<std::size_t>(r)];
+      queries_(r, 0) = coords_[0][static_cast<std::size_t>(n[0])];
+      queries_(r, 1) = coords_[1][static_cast<std::size_t>(n[1])];
+      queries_(r, 2) = coords_[2][static_cast<std::size_t>(n[2])];
+    }
+    const auto start = std::chrono::steady_clock::now();
+    sampler_(queries_, values_);
+    stats_.samplerSeconds +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    ++stats_.samplerCalls;
+    if (values_.size() != m) {
+      throw InvalidArgument("polygonize: the sampler returned " + std::to_string(values_.size()) +
+                            " values for " + std::to_string(m) + " query points");
+    }
+    for (Eigen::Index r = 0; r < m; ++r) {
+      if (!std::isfinite(values_(r))) badValue(r);
+    }
+    constexpr double kMax = static_cast<double>(std::numeric_limits<float>::max());
+    for (Eigen::Index r = 0; r < m; ++r) {
+      const auto& n = pending_[static_cast<std::size_t>(r)];
+      const float v = static_cast<float>(std::clamp(values_(r), -kMax, kMax));
+      if (coarse_) {
+        store_.coarse(store_.coarseIndex(0, n[0]), store_.coarseIndex(1, n[1]),
+                      store_.coarseIndex(2, n[2])) = v;
+      } else {
+        store_.ensureTile(n[0], n[1], n[2])[store_.local(n[0], n[1], n[2])] = v;
+      }
+    }
+    stats_.evaluatedNodes += m;
+    pending_.clear();
+    if (onFlush_) onFlush_();
+  }
+
+ private:
+  [[noreturn]] void badValue(Eigen::Index r) const {
+    const auto& n = pending_[static_cast<std::size_t>(r)];
+    std::ostringstream s;
+    s.precision(17);
+    s << "polygonize: the sampler returned a non-finite value (" << values_(r) << ") at grid node ("
+      << n[0] << ", " << n[1] << ", " << n[2] << "), position (" << queries_(r, 0) << ", "
+      << queries_(r, 1) << ", " << queries_(r, 2) << ")";
+    throw InvalidArgument(s.str());
+  }
+
+  const FieldSampler& sampler_;
+  NodeStore& store_;
+  PolygonizeStats& stats_;
+  std::size_t batch_;
+  std::function<void()> onFlush_;
+  std::array<std::vector<double>, 3> coords_;
+  std::vector<std::array<int, 3>> pending_;
+  bool coarse_ = false;
+  int threads_ = 1;
+  Points queries_;
+  Eigen::VectorXd values_;
+};
+
+/// Full mode: every node, tile by tile (spatially coherent batches).
+void sampleAll(BatchSampler& batch, NodeStore& store, const ProgressReport& report,
+               double progressEnd) {
+  const int t = store.tile();
+  for (int tz = 0; tz < store.tiles(2); ++tz) {
+    for (int ty = 0; ty < store.tiles(1); ++ty) {
+      for (int tx = 0; tx < store.tiles(0); ++tx) {
+        const int i0 = tx * t, j0 = ty * t, k0 = tz * t;
+        float* data = store.ensureTile(i0, j0, k0);
+        const int i1 = std::min(i0 + t - 1, store.cells(0));
+        const int j1 = std::min(j0 + t - 1, store.cells(1));
+        const int k1 = std::min(k0 + t - 1, store.cells(2));
+        for (int k = k0; k <= k1; ++k) {
+          for (int j = j0; j <= j1; ++j) {
+            for (int i = i0; i <= i1; ++i) {
+              data[store.local(i, j, k)] = NodeStore::kPending;
+              batch.push(i, j, k);
+              if (i < store.cells(0) && j < store.cells(1) && k < store.cells(2)) {
+                store.markCell(i, j, k);
+              }
+            }
+          }
+        }
+      }
+    }
+    if (report) report(progressEnd * (tz + 1) / store.tiles(2));
+  }
+  batch.flush();
+}
+
+/// Adaptive mode (see PolygonizeOptions::lipschitz for the skipping rule).
+class Refiner {
+ public:
+  Refiner(const GridSpec& grid, const std::vector<double>& isos, double lipschitz, NodeStore& store,
+          BatchSampler& batch, PolygonizeStats& stats)
+      : isos_(isos), lipschitz_(lipschitz), store_(store), batch_(batch), stats_(stats) {
+    const Eigen::Vector3d h = grid.cellSize();
+    h_ = {h(0), h(1), h(2)};
+  }
+
+  void run(const ProgressReport& report, double progressEnd) {
+    const int t = store_.tile();
+    int blocks[3];
+    for (int a = 0; a < 3; ++a) blocks[a] = store_.coarseCount(a) - 1;
+    stats_.coarseBlocks = static_cast<std::int64_t>(blocks[0]) * blocks[1] * blocks[2];
+
+    // The coarse lattice, in one pass.
+    store_.allocateCoarse();
+    batch_.setCoarseTarget(true);
+    for (int ck = 0; ck < store_.coarseCount(2); ++ck) {
+      for (int cj = 0; cj < store_.coarseCount(1); ++cj) {
+        for (int ci = 0; ci < store_.coarseCount(0); ++ci) {
+          batch_.push(store_.coarseNode(0, ci), store_.coarseNode(1, cj), store_.coarseNode(2, ck));
+        }
+      }
+    }
+    batch_.setCoarseTarget(false);
+
+    // Groups of coarse block layers, refined level by level so that each level's requests form
+    // large batches; nodes shared with earlier groups are never sampled twice.
+    const std::int64_t layerCells = static_cast<std::int64_t>(blocks[0]) * blocks[1] * t * t * t;
+    const int layersPerGroup =
+        static_cast<int>(std::max<std::int64_t>(1, kGroupCells / layerCells));
+    std::vector<Block> current, next;
+    for (int bz0 = 0; bz0 < blocks[2]; bz0 += layersPerGroup) {
+      const int bz1 = std::min(bz0 + layersPerGroup, blocks[2]);
+      current.clear();
+      for (int bz = bz0; bz < bz1; ++bz) {
+        for (int by = 0; by < blocks[1]; ++by) {
+          for (int bx = 0; bx < blocks[0]; ++bx) {
+            Block b;
+            const int idx[3] = {bx, by, bz};
+            for (int a = 0; a < 3; ++a) {
+              b.lo[a] = store_.coarseNode(a, idx[a]);
+              b.hi[a] = store_.coarseNode(a, idx[a] + 1);
+            }
+            current.push_back(b);
+          }
+        }
+      }
+      for (bool coarseLevel = true; !current.empty(); coarseLevel = false) {
+        next.clear();
+        for (const Block& b : current) refine(b, coarseLevel, next);
+        batch_.flush();
+        current.swap(next);
+      }
+      if (report) report(progressEnd * bz1 / blocks[2]);
+    }
+  }
+
+ private:
+  /// True when no iso value can be reached inside block b under |∇f| ≤ L. With all corners on one
+  /// side of an iso value, corner c rules out the ball of radius ρ_c = |f_c − iso| / L around it.
+  /// Cutting the block at any inner point m into 8 boxes, the box spanned by c and m lies within
+  /// |m − c| of c, so the block is ruled out when |m − c| < ρ_c for every corner. m = the centre
+  /// gives "every ρ_c > half the diagonal"; a point moved toward the corners with small ρ is tried
+  /// too, which lets blocks on a slope be skipped closer to the surface.
+  bool skippable(const Block& b) const {
+    double f[8];
+    for (int c = 0; c < 8; ++c) {
+      f[c] = static_cast<double>(store_.value(
+          (c & 1) ? b.hi[0] : b.lo[0], (c & 2) ? b.hi[1] : b.lo[1], (c & 4) ? b.hi[2] : b.lo[2]));
+      if (!std::isfinite(f[c])) return false;  // defensive: never skip on missing data
+    }
+    double e[3];
+    for (int a = 0; a < 3; ++a) e[a] = (b.hi[a] - b.lo[a]) * h_[a];
+    const double lo = *std::min_element(f, f + 8), hi = *std::max_element(f, f + 8);
+    for (double iso : isos_) {
+      if (!(lo > iso || hi < iso)) return false;  // a corner on each side (or on iso)
+      double rho2[8];
+      for (int c = 0; c < 8; ++c) {
+        const double r = std::abs(f[c] - iso) / lipschitz_;
+        rho2[c] = r * r;
+      }
+      if (!coveredFrom(centre(e), e, rho2) && !coveredFrom(radicalPoint(e, rho2), e, rho2)) {
+        return false;
+      }
+    }
+    return true;
+  }
+
+  static std::array<double, 3> centre(const double e[3]) {
+    return {0.5 * e[0], 0.5 * e[1], 0.5 * e[2]};
+  }
+
+  /// Per axis, the radical plane of the mean squared radii of the two opposite faces' corners:
+  /// where a low-face and a high-face ball of those radii reach equally far.
+  static std::array<double, 3> radicalPoint(const double e[3], const double rho2[8]) {
+    std::array<double, 3> m{};
+    for (int a = 0; a < 3; ++a) {
+      double low = 0.0, high = 0.0;
+      for (int c = 0; c < 8; ++c) ((c >> a) & 1 ? high : low) += 0.25 * rho2[c];
+      m[a] = e[a] > 0.0 ? std::clamp((low - high + e[a] * e[a]) / (2.0 * e[a]), 0.0, e[a]) : 0.0;
+    }
+    return m;
+  }
+
+  /// True when |m − c|² < ρ_c² for all 8 corners c (block-local coordinates, corner 0 at 0).
+  static bool coveredFrom(const std::array<double, 3>& m, const double e[3], const double rho2[8]) {
+    for (int c = 0; c < 8; ++c) {
+      double d2 = 0.0;
+      for (int a = 0; a < 3; ++a) {
+        const double d = ((c >> a) & 1 ? e[a] : 0.0) - m[a];
+        d2 += d * d;
+      }
+      if (!(d2 < rho2[c])) return false;
+    }
+    return true;
+  }
+
+  void refine(const Block& b, bool coarseLevel, std::vector<Block>& next) {
+    int maxExtent = 0;
+    for (int a = 0; a < 3; ++a) maxExtent = std::max(maxExtent, b.hi[a] - b.lo[a]);
+    if (skippable(b)) return;
+    if (coarseLevel) ++stats_.refinedBlocks;
+    if (maxExtent <= 2) {
+      // A leaf: sample all its nodes and contour all its cells.
+      for (int k = b.lo[2]; k <= b.hi[2]; ++k) {
+        for (int j = b.lo[1]; j <= b.hi[1]; ++j) {
+          for (int i = b.lo[0]; i <= b.hi[0]; ++i) {
+            batch_.request(i, j, k);
+            if (i < b.hi[0] && j < b.hi[1] && k < b.hi[2]) store_.markCell(i, j, k);
+          }
+        }
+      }
+      return;
+    }
+    // Halve every axis with at least 2 cells; sample the new lattice nodes; test the children at
+    // the next level.
+    int cuts[3][3], counts[3];
+    for (int a = 0; a < 3; ++a) {
+      const int e = b.hi[a] - b.lo[a];
+      counts[a] = 0;
+      cuts[a][counts[a]++] = b.lo[a];
+      if (e >= 2) cuts[a][counts[a]++] = b.lo[a] + e / 2;
+      cuts[a][counts[a]] = b.hi[a];
+    }
+    for (int z = 0; z <= counts[2]; ++z) {
+      for (int y = 0; y <= counts[1]; ++y) {
+        for (int x = 0; x <= counts[0]; ++x) batch_.request(cuts[0][x], cuts[1][y], cuts[2][z]);
+      }
+    }
+    for (int z = 0; z < counts[2]; ++z) {
+      for (int y = 0; y < counts[1]; ++y) {
+        for (int x = 0; x < counts[0]; ++x) {
+          next.push_back(Block{{cuts[0][x], cuts[1][y], cuts[2][z]},
+                               {cuts[0][x + 1], cuts[1][y + 1], cuts[2][z + 1]}});
+        }
+      }
+    }
+  }
+
+  const std::vector<double>& isos_;
+  double lipschitz_;
+  NodeStore& store_;
+  BatchSampler& batch_;
+  PolygonizeStats& stats_;
+  std::array<double, 3> h_{};
+};
+
+}  // namespace
+
+const std::array<std::array<int, 4>, 6>& cellFaces() {
+  // Per face: the axis, the side (−1 / +1) and the corner bitmask of its 4 nodes.
+  static const std::array<std::array<int, 4>, 6> faces = {{{0, -1, 0x55, 0},
+                                                           {0, +1, 0xAA, 0},
+                                                           {1, -1, 0x33, 0},
+                                                           {1, +1, 0xCC, 0},
+                                                           {2, -1, 0x0F, 0},
+                                                           {2, +1, 0xF0, 0}}};
+  return faces;
+}
+
+std::array<std::vector<double>, 3> nodeCoordinates(const GridSpec& grid) {
+  std::array<std::vector<double>, 3> c;
+  for (int a = 0; a < 3; ++a) {
+    const int n = grid.cells(a);
+    c[a].resize(static_cast<std::size_t>(n) + 1);
+    for (int i = 0; i <= n; ++i) {
+      c[a][static_cast<std::size_t>(i)] =
+          nodeCoordinate(grid.box.min()(a), grid.box.max()(a), n, i);
+    }
+  }
+  return c;
+}
+
+void sampleNodes(const FieldSampler& sampler, const GridSpec& grid,
+                 const std::vector<double>& isoValues, const PolygonizeOptions& options,
+                 const ProgressReport& report, double progressEnd, NodeStore& store,
+                 PolygonizeStats& stats) {
+  // Cancellation is checked after every sampler call; fractions there are coarse estimates.
+  double lastFraction = 0.0;
+  const ProgressReport tracked = [&](double f) {
+    lastFraction = f;
+    if (report) report(f);
+  };
+  BatchSampler batch(sampler, grid, store, stats, options, [&] {
+    if (report) report(lastFraction);
+  });
+  if (options.adaptive) {
+    Refiner(grid, isoValues, options.lipschitz, store, batch, stats).run(tracked, progressEnd);
+  } else {
+    sampleAll(batch, store, tracked, progressEnd);
+  }
+}
+
+std::int64_t closeSurfaces(const FieldSampler& sampler, const GridSpec& grid,
+                           const std::vector<double>& isoValues, const PolygonizeOptions& options,
+                           const ProgressReport& report, double progress, NodeStore& store,
+                           PolygonizeStats& stats, std::vector<std::array<int, 3>> cells) {
+  BatchSampler batch(sampler, grid, store, stats, options, [&] {
+    if (report) report(progress);
+  });
+  std::int64_t added = 0;
+  std::vector<std::array<int, 3>> next;
+  while (!cells.empty()) {
+    // Mark and sample this round's cells (each once), then look across their faces.
+    std::sort(cells.begin(), cells.end());
+    cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+    std::size_t kept = 0;
+    for (const auto& c : cells) {
+      if (store.cellMarked(c[0], c[1], c[2])) continue;
+      store.markCell(c[0], c[1], c[2]);
+      for (int corner = 0; corner < 8; ++corner) {
+        batch.request(c[0] + (corner & 1), c[1] + ((corner >> 1) & 1), c[2] + ((corner >> 2) & 1));
+      }
+      cells[kept++] = c;
+    }
+    cells.resize(kept);
+    batch.flush();
+    added += static_cast<std::int64_t>(kept);
+    next.clear();
+    for (const auto& c : cells) {
+      float v[8];
+      for (int corner = 0; corner < 8; ++corner) {
+        v[corner] = store.value(c[0] + (corner & 1), c[1] + ((corner >> 1) & 1),
+                                c[2] + ((corner >> 2) & 1));
+      }
+      appendOpenNeighbours(store, c, v, isoValues, next);
+    }
+    cells.swap(next);
+  }
+  return added;
+}
+
+void appendOpenNeighbours(const NodeStore& store, const std::array<int, 3>& cell, const float* v,
+                          const std::vector<double>& isoValues,
+                          std::vector<std::array<int, 3>>& out) {
+  int crossed = 0;  // faces with a sign change for some iso value
+  for (double iso : isoValues) {
+    int mask = 0;
+    for (int c = 0; c < 8; ++c) mask |= (static_cast<double>(v[c]) >= iso) << c;
+    for (int f = 0; f < 6; ++f) {
+      const int fm = cellFaces()[static_cast<std::size_t>(f)][2];
+      if ((mask & fm) != 0 && (mask & fm) != fm) crossed |= 1 << f;
+    }
+  }
+  for (int f = 0; f < 6; ++f) {
+    if (((crossed >> f) & 1) == 0) continue;
+    const auto& face = cellFaces()[static_cast<std::size_t>(f)];
+    std::array<int, 3> n = cell;
+    n[static_cast<std::size_t>(face[0])] += face[1];
+    if (n[static_cast<std::size_t>(face[0])] < 0 ||
+        n[static_cast<std::size_t>(face[0])] >= store.cells(face[0])) {
+      continue;  // the grid boundary: the surface stays open there
+    }
+    if (!store.cellMarked(n[0], n[1], n[2])) out.push_back(n);
+  }
+}
+
+}  // namespace duplexfit::detail
