@@ -60,3 +60,38 @@ __kernel void cg_direction(const uint n, const real beta, __global const real* r
   const uint i = get_global_id(0);
   if (i < n) p[i] = dinv[i] * r[i] + beta * p[i];
 }
+
+/* The same update without a diagonal preconditioner (for block or other preconditioners, which apply
+ * M^-1 in their own pass): x <- x + alpha*p; r <- r - alpha*q; partial[c] = r.r over the chunk/group. */
+__kernel void cg_update_xr_chunk(const uint n, const real alpha, __global const real* restrict p,
+                                 __global const real* restrict q, __global real* restrict x,
+                                 __global real* restrict r, __global real* restrict partial) {
+  const uint c = get_global_id(0);
+  if ((ulong)c * CHUNK >= n) return;
+  uint begin, end;
+  chunk_range(c, n, &begin, &end);
+  real rr = 0;
+  for (uint i = begin; i < end; ++i) {
+    x[i] += alpha * p[i];
+    const real ri = r[i] - alpha * q[i];
+    r[i] = ri;
+    rr += ri * ri;
+  }
+  partial[c] = rr;
+}
+
+__kernel void cg_update_xr_group(const uint n, const real alpha, __global const real* restrict p,
+                                 __global const real* restrict q, __global real* restrict x,
+                                 __global real* restrict r, __global real* restrict partial) {
+  __local real s[WG];
+  real rr = 0;
+  for (uint i = get_global_id(0); i < n; i += get_global_size(0)) {
+    x[i] += alpha * p[i];
+    const real ri = r[i] - alpha * q[i];
+    r[i] = ri;
+    rr += ri * ri;
+  }
+  s[get_local_id(0)] = rr;
+  group_reduce(s);
+  if (get_local_id(0) == 0) partial[get_group_id(0)] = s[0];
+}

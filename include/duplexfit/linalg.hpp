@@ -102,6 +102,8 @@ class Preconditioner {
  public:
   virtual ~Preconditioner() = default;
   virtual void apply(const DeviceVector& r, DeviceVector& z) const = 0;
+  /// z ← M⁻¹ r and returns r·z; override to fuse both into one pass.
+  virtual double applyDot(const DeviceVector& r, DeviceVector& z) const;
   /// A diagonal preconditioner returns its inverse diagonal here; the solver then fuses it into its
   /// update kernels (one pass less per iteration). Others return nullptr.
   virtual const DeviceVector* inverseDiagonal() const { return nullptr; }
@@ -130,6 +132,7 @@ class BlockJacobiPreconditioner final : public Preconditioner {
   /// @throws InvalidArgument when blockSize < 1 or a is not square; DeviceError as DeviceVector.
   BlockJacobiPreconditioner(const Device& device, const CsrMatrix& a, Precision precision, int blockSize = 16);
   void apply(const DeviceVector& r, DeviceVector& z) const override;
+  double applyDot(const DeviceVector& r, DeviceVector& z) const override;
   std::string name() const override { return "block-jacobi-" + std::to_string(blockSize_); }
   int blockSize() const noexcept { return blockSize_; }
 

@@ -14,26 +14,6 @@ namespace {
 
 cl_uint toUint(std::size_t n) { return static_cast<cl_uint>(n); }
 
-// Launches a reduction kernel whose arguments are already set except the trailing partial buffer at
-// index partialArg, and returns the per-chunk/per-group partials (perItem values each).
-std::vector<double> reduce(const Device& device, Precision precision, cl::Kernel& k, cl_uint partialArg,
-                           std::size_t n, std::size_t perItem, const char* name) {
-  detail::DeviceImpl& impl = *device.impl();
-  const auto& p = impl.params();
-  std::size_t parts = 0, global = 0;
-  if (p.chunkReductions) {
-    parts = (n + p.chunk - 1) / p.chunk;
-    global = parts;
-  } else {
-    parts = std::min(p.groups, (n + p.workGroup - 1) / p.workGroup);
-    global = parts * p.workGroup;
-  }
-  cl::Buffer& scratch = impl.scratch(parts * perItem * detail::sizeOf(precision));
-  detail::setArg(k, partialArg, scratch, name);
-  impl.launch(k, global, p.workGroup, name);
-  return detail::readPartials(impl, scratch, parts * perItem, precision);
-}
-
 }  // namespace
 
 void axpy(double alpha, const DeviceVector& x, DeviceVector& y) {
@@ -102,9 +82,7 @@ double dot(const DeviceVector& x, const DeviceVector& y) {
     const char* name = impl.params().chunkReductions ? "dot_chunk" : "dot_group";
     cl::Kernel& k = impl.kernel("blas1", x.precision(), name);
     detail::setArgs(k, name, toUint(n), x.storage().buffer, y.storage().buffer);
-    double s = 0.0;
-    for (double v : reduce(x.device(), x.precision(), k, 3, n, 1, name)) s += v;
-    return s;
+    return detail::reduceLaunch(x.device(), x.precision(), k, 3, n, 1, name)[0];
   });
 }
 
@@ -114,6 +92,64 @@ double norm2(const DeviceVector& x) {
 }
 
 namespace detail {
+
+std::vector<double> reduceLaunch(const Device& device, Precision precision, cl::Kernel& k, unsigned partialArg,
+                                 std::size_t n, std::size_t perItem, const char* name) {
+  DeviceImpl& impl = *device.impl();
+  const auto& p = impl.params();
+  std::size_t parts = 0, global = 0;
+  if (p.chunkReductions) {
+    parts = (n + p.chunk - 1) / p.chunk;
+    global = parts;
+  } else {
+    parts = std::min(p.groups, (n + p.workGroup - 1) / p.workGroup);
+    global = parts * p.workGroup;
+  }
+  cl::Buffer& scratch = impl.scratch(parts * perItem * sizeOf(precision));
+  setArg(k, partialArg, scratch, name);
+  impl.launch(k, global, p.workGroup, name);
+  const std::vector<double> all = readPartials(impl, scratch, parts * perItem, precision);
+  std::vector<double> sums(perItem, 0.0);
+  for (std::size_t i = 0; i < all.size(); ++i) sums[i % perItem] += all[i];
+  return sums;
+}
+
+double cgUpdateXR(double alpha, const DeviceVector& p, const DeviceVector& q, DeviceVector& x, DeviceVector& r) {
+  checkCompatible("cgUpdateXR", p, q);
+  checkCompatible("cgUpdateXR", p, x);
+  checkCompatible("cgUpdateXR", p, r);
+  const std::size_t n = p.size();
+  if (n == 0) return 0.0;
+  return dispatch(p.precision(), [&](auto zero) -> double {
+    using T = decltype(zero);
+    if (p.device().isReference()) {
+      const T a = static_cast<T>(alpha);
+      const T* ps = p.storage().host<T>().data();
+      const T* qs = q.storage().host<T>().data();
+      T* xs = x.storage().host<T>().data();
+      T* rs = r.storage().host<T>().data();
+      double rr = 0.0;
+#pragma omp parallel for schedule(static) reduction(+ : rr)
+      for (std::size_t i = 0; i < n; ++i) {
+        xs[i] += a * ps[i];
+        const T ri = rs[i] - a * qs[i];
+        rs[i] = ri;
+        rr += static_cast<double>(ri * ri);
+      }
+      return rr;
+    }
+    auto& impl = *p.device().impl();
+    const char* name = impl.params().chunkReductions ? "cg_update_xr_chunk" : "cg_update_xr_group";
+    cl::Kernel& k = impl.kernel("cg", p.precision(), name);
+    setArg(k, 0, toUint(n), name);
+    setRealArg(k, 1, alpha, p.precision(), name);
+    setArg(k, 2, p.storage().buffer, name);
+    setArg(k, 3, q.storage().buffer, name);
+    setArg(k, 4, x.storage().buffer, name);
+    setArg(k, 5, r.storage().buffer, name);
+    return reduceLaunch(p.device(), p.precision(), k, 6, n, 1, name)[0];
+  });
+}
 
 void vmul(const DeviceVector& d, const DeviceVector& r, DeviceVector& z) {
   checkCompatible("vmul", d, r);
@@ -199,13 +235,8 @@ std::pair<double, double> cgUpdate(double alpha, const DeviceVector& p, const De
     setArg(k, 4, dinv.storage().buffer, name);
     setArg(k, 5, x.storage().buffer, name);
     setArg(k, 6, r.storage().buffer, name);
-    const std::vector<double> parts = reduce(p.device(), p.precision(), k, 7, n, 2, name);
-    double rz = 0.0, rr = 0.0;
-    for (std::size_t i = 0; i + 1 < parts.size(); i += 2) {
-      rz += parts[i];
-      rr += parts[i + 1];
-    }
-    return {rz, rr};
+    const std::vector<double> sums = reduceLaunch(p.device(), p.precision(), k, 7, n, 2, name);
+    return {sums[0], sums[1]};
   });
 }
 

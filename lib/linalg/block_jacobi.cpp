@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 
 #include "duplexfit/error.hpp"
+#include "linalg/ops.hpp"
 #include "linalg/storage.hpp"
 
 namespace duplexfit {
@@ -74,6 +75,27 @@ void BlockJacobiPreconditioner::apply(const DeviceVector& r, DeviceVector& z) co
                     r.storage().buffer, z.storage().buffer);
     impl.launch(k, n_, impl.params().workGroup, "block_jacobi");
   });
+}
+
+}  // namespace duplexfit
+
+namespace duplexfit {
+
+double Preconditioner::applyDot(const DeviceVector& r, DeviceVector& z) const {
+  apply(r, z);
+  return dot(r, z);
+}
+
+double BlockJacobiPreconditioner::applyDot(const DeviceVector& r, DeviceVector& z) const {
+  if (r.device().isReference() || n_ == 0) return Preconditioner::applyDot(r, z);
+  detail::checkCompatible("block Jacobi", r, z);
+  if (r.size() != n_) throw InvalidArgument("block Jacobi: vector size does not match the matrix");
+  auto& impl = *r.device().impl();
+  const char* name = impl.params().chunkReductions ? "block_jacobi_dot_chunk" : "block_jacobi_dot_group";
+  cl::Kernel& k = impl.kernel("precond", r.precision(), name);
+  detail::setArgs(k, name, static_cast<cl_uint>(n_), static_cast<cl_uint>(blockSize_), inverses_.storage().buffer,
+                  r.storage().buffer, z.storage().buffer);
+  return detail::reduceLaunch(r.device(), r.precision(), k, 5, n_, 1, name)[0];
 }
 
 }  // namespace duplexfit

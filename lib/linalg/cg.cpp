@@ -160,11 +160,8 @@ SolveStats solveCg(const DeviceCsr& a, const DeviceVector& b, DeviceVector& x, c
     if (dinv != nullptr) {
       std::tie(rzNew, rr) = detail::cgUpdate(alpha, p, q, *dinv, x, r);
     } else {
-      axpy(alpha, p, x);
-      axpy(-alpha, q, r);
-      preconditioner->apply(r, z);
-      rzNew = dot(r, z);
-      rr = dot(r, r);
+      rr = detail::cgUpdateXR(alpha, p, q, x, r);
+      rzNew = preconditioner->applyDot(r, z);
     }
     const double beta = rzNew / rz;
     rz = rzNew;

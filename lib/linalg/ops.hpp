@@ -1,7 +1,10 @@
 // Fused operations of the CG iteration (internal), each with its reference twin; see kernels/cg_fused.cl.
 #pragma once
 
+#include <CL/opencl.hpp>
+
 #include <utility>
+#include <vector>
 
 #include "duplexfit/linalg.hpp"
 
@@ -12,12 +15,18 @@ double spmvDot(const DeviceCsr& a, const DeviceVector& x, DeviceVector& y, SpmvK
 /// x ← x + αp, r ← r − αq; returns (rᵀ D r, rᵀ r) with D = dinv (one pass).
 std::pair<double, double> cgUpdate(double alpha, const DeviceVector& p, const DeviceVector& q,
                                    const DeviceVector& dinv, DeviceVector& x, DeviceVector& r);
+/// x ← x + αp, r ← r − αq; returns rᵀr (one pass; for non-diagonal preconditioners).
+double cgUpdateXR(double alpha, const DeviceVector& p, const DeviceVector& q, DeviceVector& x, DeviceVector& r);
 /// p ← D r + βp (β = 0 overwrites p without reading it).
 void cgDirection(double beta, const DeviceVector& r, const DeviceVector& dinv, DeviceVector& p);
 /// z ← d .* r
 void vmul(const DeviceVector& d, const DeviceVector& r, DeviceVector& z);
 /// a ← b + s·c (STREAM triad, for bandwidth measurements).
 void triad(DeviceVector& a, const DeviceVector& b, const DeviceVector& c, double s);
+/// Launches a reduction kernel whose arguments before `partialArg` are set, over n elements with
+/// `perItem` partial values per chunk/group, and returns the partials summed per slot (perItem values).
+std::vector<double> reduceLaunch(const Device& device, Precision precision, cl::Kernel& kernel,
+                                 unsigned partialArg, std::size_t n, std::size_t perItem, const char* name);
 /// Resolves SpmvKernel::Auto for a device.
 SpmvKernel resolveSpmvKernel(const Device& device, SpmvKernel kernel);
 
