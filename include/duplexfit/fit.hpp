@@ -47,6 +47,10 @@ struct FitOptions {
   /// Arithmetic of the device solves and field evaluations.
   Precision precision = Precision::Float;
   SolverOptions solver{};
+  /// Each level's CG also stops once max_i |t_i − f_k(c_i)| ≤ levelTolerance (normalised units, i.e.
+  /// fractions of the bounding box's largest side): the remaining fit error at every centre. 0: only the
+  /// relative criterion of `solver`. The default keeps E_0 well below the float path's 1e-4 target.
+  double levelTolerance = 1e-6;
   PreconditionerKind preconditioner = PreconditionerKind::BlockJacobi;
   int blockSize = 16;  ///< rows per block of the block Jacobi preconditioner
 };
@@ -78,7 +82,9 @@ struct FitReport {
   bool stoppedEarly = false;           ///< the ε_fit test ended the fit before level M
   std::vector<LevelReport> levelReports;
   double e0 = 0.0;                     ///< max |f(p)| over the input points (input units)
-  std::vector<double> eDelta;          ///< per offset: max |f(q) − δ| over the valid finest-level offset points
+  /// per offset: max |f(q) − δ| over the valid finest-level offset points (from the final residual, in
+  /// double; 0 when the fit stopped early)
+  std::vector<double> eDelta;
   double secondsHierarchy = 0.0, secondsTotal = 0.0;
 };
 

@@ -144,7 +144,7 @@ class BlockJacobiPreconditioner final : public Preconditioner {
 
 /// Why a CG solve stopped.
 enum class StopReason {
-  Converged,       ///< ‖b − Ax‖ ≤ tol·‖b‖
+  Converged,       ///< ‖b − Ax‖ ≤ tol·‖b‖, or max|b − Ax| ≤ the absolute tolerance
   ZeroRhs,         ///< b = 0: x = 0 is exact
   IterationLimit,  ///< maxIterations reached
   Breakdown,       ///< pᵀAp ≤ 0 or rᵀz ≤ 0: the matrix or preconditioner is not positive definite
@@ -158,6 +158,9 @@ const char* stopReasonName(StopReason reason) noexcept;
 struct SolverOptions {
   int maxIterations = 20000;         ///< iteration cap (fine levels can need thousands, algorithm.md §5)
   double relativeTolerance = 0.0;    ///< stop at ‖r‖ ≤ tol·‖b‖; 0: 1e-6 in double, 1e-5 in float
+  /// Also stop when max_i |r_i| ≤ absoluteTolerance (0: off). The level solves of a fit set it: there
+  /// r_i is exactly the remaining fit error at centre i.
+  double absoluteTolerance = 0.0;
   bool useFusedKernels = true;       ///< fused CG updates (fewer passes over memory) where possible
   SpmvKernel spmvKernel = SpmvKernel::Auto;
   /// Called every progressInterval iterations with (iteration, relative residual); return false to stop.
@@ -172,6 +175,7 @@ struct SolveStats {
   int iterations = 0;
   double relativeResidual = 0.0;     ///< ‖b − Ax‖/‖b‖ recomputed from x at the end (true residual)
   double recurrenceResidual = 0.0;   ///< the solver's own ‖r‖/‖b‖ when it stopped
+  double maxResidual = 0.0;          ///< max_i |b − Ax|_i of the returned x (true residual)
   double tolerance = 0.0;            ///< the tolerance actually used
   double seconds = 0.0;
 };

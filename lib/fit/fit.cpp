@@ -33,6 +33,7 @@ void checkOptions(const FitOptions& o) {
   if (!(o.smoothing >= 0.0) || !std::isfinite(o.smoothing)) bad("smoothing must be >= 0");
   if (!(o.fitTolerance >= 0.0) || !std::isfinite(o.fitTolerance)) bad("fitTolerance must be >= 0");
   if (!(o.mergeDistance >= 0.0 && o.mergeDistance < 0.5)) bad("mergeDistance must be in [0, 0.5)");
+  if (!(o.levelTolerance >= 0.0) || !std::isfinite(o.levelTolerance)) bad("levelTolerance must be >= 0");
   if (o.blockSize < 1 || o.blockSize > 256) bad("blockSize must be in [1, 256]");
   for (double d : o.offsets) {
     if (!std::isfinite(d)) bad("offsets must be finite");
@@ -99,7 +100,6 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
 
   ImplicitField field(norm, -1.0, {}, rep.offsets, bounds);
   std::vector<FieldLevel> fitted;
-  detail::LevelConstraints finest;
   for (int k = 1; k <= levels; ++k) {
     LevelReport lr;
     lr.level = k;
@@ -155,6 +155,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     const DeviceVector db = DeviceVector::upload(device, b, options.precision);
     DeviceVector x(device, static_cast<std::size_t>(b.size()), options.precision);
     SolverOptions so = options.solver;
+    if (so.absoluteTolerance == 0.0) so.absoluteTolerance = options.levelTolerance;
     so.progress = [&](int it, double res) {
       if (options.solver.progress && !options.solver.progress(it, res)) return false;
       return !progress || progress({"solve", k, levels, it, res, ""});
@@ -171,24 +172,25 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
 
     fitted.push_back(FieldLevel{sigma, c.centres, x.download()});
     rep.levelReports.push_back(lr);
-    if (k == levels) finest = std::move(c);
+    if (k == levels) {
+      // E_δ (§8.1) at the finest level's valid offset points: there b − A·w = t − f_M(c) exactly, so
+      // the residual (in double on the host) gives the errors without evaluating the field again.
+      const Eigen::VectorXd residual = b - a.multiply(fitted.back().weights);
+      rep.eDelta.assign(deltas.size(), 0.0);
+      for (std::size_t j = 0; j < deltas.size(); ++j) {
+        for (const Eigen::Index r : c.offsetRows[j]) {
+          rep.eDelta[j] = std::max(rep.eDelta[j], std::abs(residual[r]) / norm.scale);
+        }
+      }
+    }
   }
   field = ImplicitField(norm, -1.0, fitted, rep.offsets, bounds);
 
-  // E_0 and E_δ (§8.1): max errors at the input points and at the finest level's valid offset points.
+  // E_0 (§8.1): max |f| at every input point (merged ones included), evaluated on the device.
   report(progress, {"errors", 0, levels, 0, 0.0, ""});
-  const FieldEvaluator evaluator(device, field, options.precision);
-  const Eigen::VectorXd f0 = evaluator.evaluate(points.positions()).values;
+  const Eigen::VectorXd f0 = FieldEvaluator(device, field, options.precision).evaluate(points.positions()).values;
   rep.e0 = f0.size() > 0 ? f0.cwiseAbs().maxCoeff() : 0.0;
-  rep.eDelta.assign(deltas.size(), 0.0);
-  if (!rep.stoppedEarly && finest.centres.rows() > 0) {
-    const Eigen::VectorXd fc = evaluator.evaluateNormalized(finest.centres) / norm.scale;
-    for (std::size_t j = 0; j < deltas.size(); ++j) {
-      double e = 0.0;
-      for (const Eigen::Index r : finest.offsetRows[j]) e = std::max(e, std::abs(fc[r] - rep.offsets[j]));
-      rep.eDelta[j] = e;
-    }
-  }
+  if (rep.eDelta.size() != deltas.size()) rep.eDelta.assign(deltas.size(), 0.0);  // stopped early
   rep.secondsTotal = since(start);
   return FitResult{std::move(field), std::move(rep)};
 }

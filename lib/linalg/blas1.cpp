@@ -1,4 +1,5 @@
 // BLAS-1 operations and the fused CG vector updates: OpenCL launches and their reference twins.
+#include <algorithm>
 #include <cmath>
 
 #include "device/cl_check.hpp"
@@ -94,7 +95,7 @@ double norm2(const DeviceVector& x) {
 namespace detail {
 
 std::vector<double> reduceLaunch(const Device& device, Precision precision, cl::Kernel& k, unsigned partialArg,
-                                 std::size_t n, std::size_t perItem, const char* name) {
+                                 std::size_t n, std::size_t perItem, const char* name, std::size_t maxSlot) {
   DeviceImpl& impl = *device.impl();
   const auto& p = impl.params();
   std::size_t parts = 0, global = 0;
@@ -110,17 +111,20 @@ std::vector<double> reduceLaunch(const Device& device, Precision precision, cl::
   impl.launch(k, global, p.workGroup, name);
   const std::vector<double> all = readPartials(impl, scratch, parts * perItem, precision);
   std::vector<double> sums(perItem, 0.0);
-  for (std::size_t i = 0; i < all.size(); ++i) sums[i % perItem] += all[i];
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    const std::size_t slot = i % perItem;
+    sums[slot] = slot == maxSlot ? std::max(sums[slot], all[i]) : sums[slot] + all[i];
+  }
   return sums;
 }
 
-double cgUpdateXR(double alpha, const DeviceVector& p, const DeviceVector& q, DeviceVector& x, DeviceVector& r) {
+CgSums cgUpdateXR(double alpha, const DeviceVector& p, const DeviceVector& q, DeviceVector& x, DeviceVector& r) {
   checkCompatible("cgUpdateXR", p, q);
   checkCompatible("cgUpdateXR", p, x);
   checkCompatible("cgUpdateXR", p, r);
   const std::size_t n = p.size();
-  if (n == 0) return 0.0;
-  return dispatch(p.precision(), [&](auto zero) -> double {
+  if (n == 0) return {};
+  return dispatch(p.precision(), [&](auto zero) -> CgSums {
     using T = decltype(zero);
     if (p.device().isReference()) {
       const T a = static_cast<T>(alpha);
@@ -128,15 +132,16 @@ double cgUpdateXR(double alpha, const DeviceVector& p, const DeviceVector& q, De
       const T* qs = q.storage().host<T>().data();
       T* xs = x.storage().host<T>().data();
       T* rs = r.storage().host<T>().data();
-      double rr = 0.0;
-#pragma omp parallel for schedule(static) reduction(+ : rr)
+      double rr = 0.0, rmax = 0.0;
+#pragma omp parallel for schedule(static) reduction(+ : rr) reduction(max : rmax)
       for (std::size_t i = 0; i < n; ++i) {
         xs[i] += a * ps[i];
         const T ri = rs[i] - a * qs[i];
         rs[i] = ri;
         rr += static_cast<double>(ri * ri);
+        rmax = std::max(rmax, static_cast<double>(std::abs(ri)));
       }
-      return rr;
+      return {0.0, rr, rmax};
     }
     auto& impl = *p.device().impl();
     const char* name = impl.params().chunkReductions ? "cg_update_xr_chunk" : "cg_update_xr_group";
@@ -147,7 +152,8 @@ double cgUpdateXR(double alpha, const DeviceVector& p, const DeviceVector& q, De
     setArg(k, 3, q.storage().buffer, name);
     setArg(k, 4, x.storage().buffer, name);
     setArg(k, 5, r.storage().buffer, name);
-    return reduceLaunch(p.device(), p.precision(), k, 6, n, 1, name)[0];
+    const std::vector<double> v = reduceLaunch(p.device(), p.precision(), k, 6, n, 2, name, 1);
+    return {0.0, v[0], v[1]};
   });
 }
 
@@ -197,15 +203,15 @@ void triad(DeviceVector& a, const DeviceVector& b, const DeviceVector& c, double
   });
 }
 
-std::pair<double, double> cgUpdate(double alpha, const DeviceVector& p, const DeviceVector& q,
-                                   const DeviceVector& dinv, DeviceVector& x, DeviceVector& r) {
+CgSums cgUpdate(double alpha, const DeviceVector& p, const DeviceVector& q, const DeviceVector& dinv,
+                DeviceVector& x, DeviceVector& r) {
   checkCompatible("cgUpdate", p, q);
   checkCompatible("cgUpdate", p, dinv);
   checkCompatible("cgUpdate", p, x);
   checkCompatible("cgUpdate", p, r);
   const std::size_t n = p.size();
-  if (n == 0) return {0.0, 0.0};
-  return dispatch(p.precision(), [&](auto zero) -> std::pair<double, double> {
+  if (n == 0) return {};
+  return dispatch(p.precision(), [&](auto zero) -> CgSums {
     using T = decltype(zero);
     if (p.device().isReference()) {
       const T a = static_cast<T>(alpha);
@@ -214,16 +220,17 @@ std::pair<double, double> cgUpdate(double alpha, const DeviceVector& p, const De
       const T* ds = dinv.storage().host<T>().data();
       T* xs = x.storage().host<T>().data();
       T* rs = r.storage().host<T>().data();
-      double rz = 0.0, rr = 0.0;
-#pragma omp parallel for schedule(static) reduction(+ : rz, rr)
+      double rz = 0.0, rr = 0.0, rmax = 0.0;
+#pragma omp parallel for schedule(static) reduction(+ : rz, rr) reduction(max : rmax)
       for (std::size_t i = 0; i < n; ++i) {
         xs[i] += a * ps[i];
         const T ri = rs[i] - a * qs[i];
         rs[i] = ri;
         rz += static_cast<double>(ri * ds[i] * ri);
         rr += static_cast<double>(ri * ri);
+        rmax = std::max(rmax, static_cast<double>(std::abs(ri)));
       }
-      return {rz, rr};
+      return {rz, rr, rmax};
     }
     auto& impl = *p.device().impl();
     const char* name = impl.params().chunkReductions ? "cg_update_chunk" : "cg_update_group";
@@ -235,8 +242,8 @@ std::pair<double, double> cgUpdate(double alpha, const DeviceVector& p, const De
     setArg(k, 4, dinv.storage().buffer, name);
     setArg(k, 5, x.storage().buffer, name);
     setArg(k, 6, r.storage().buffer, name);
-    const std::vector<double> sums = reduceLaunch(p.device(), p.precision(), k, 7, n, 2, name);
-    return {sums[0], sums[1]};
+    const std::vector<double> v = reduceLaunch(p.device(), p.precision(), k, 7, n, 3, name, 2);
+    return {v[0], v[1], v[2]};
   });
 }
 

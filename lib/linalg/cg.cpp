@@ -99,37 +99,47 @@ SolveStats solveCg(const DeviceCsr& a, const DeviceVector& b, DeviceVector& x, c
   const double target = stats.tolerance * bnorm;
 
   DeviceVector r(device, n, prec), p(device, n, prec), q(device, n, prec), z(device, n, prec);
-  // r = b − A x, z = M⁻¹ r, p = z; returns (r·z, r·r). Also used to restart on residual drift.
-  auto restart = [&]() -> std::pair<double, double> {
+  // r = b − A x, z = M⁻¹ r, p = z; returns r·z, r·r and max|r|. Also used to restart on residual drift.
+  auto restart = [&]() -> detail::CgSums {
     spmv(a, x, q, kernel);
     r.fill(0.0);
     axpy(1.0, b, r);
     axpy(-1.0, q, r);
-    preconditioner->apply(r, z);
+    const double rz = preconditioner->applyDot(r, z);
     p.fill(0.0);
     axpy(1.0, z, p);
-    return {dot(r, z), dot(r, r)};
+    const detail::CgSums xr = detail::cgUpdateXR(0.0, p, q, x, r);  // α = 0: only r·r and max|r|
+    return {rz, xr.rr, xr.rmax};
   };
-  auto [rz, rr] = restart();
+  // The true residual b − A x into z; returns (‖·‖₂, max|·|).
+  auto trueResidual = [&]() -> std::pair<double, double> {
+    spmv(a, x, q, kernel);
+    z.fill(0.0);
+    axpy(1.0, b, z);
+    axpy(-1.0, q, z);
+    const detail::CgSums s = detail::cgUpdateXR(0.0, p, q, x, z);
+    return {std::sqrt(std::max(s.rr, 0.0)), s.rmax};
+  };
+  const double absTol = options.absoluteTolerance;
+  auto converged = [&](double norm, double maxAbs) {
+    return norm <= target || (absTol > 0.0 && maxAbs <= absTol);
+  };
+  detail::CgSums sums = restart();
   int restarts = 0;
   int it = 0;
   StopReason reason = StopReason::IterationLimit;
   for (;;) {
-    const double rnorm = std::sqrt(std::max(rr, 0.0));
+    const double rnorm = std::sqrt(std::max(sums.rr, 0.0));
     stats.recurrenceResidual = rnorm / bnorm;
-    if (!finite(rz) || !finite(rr)) {
+    if (!finite(sums.rz) || !finite(sums.rr)) {
       reason = StopReason::NonFinite;
       break;
     }
-    if (rnorm <= target) {
+    if (converged(rnorm, sums.rmax)) {
       // Guard against drift of the recursive residual (notably in float): check the true one and
       // restart from it, at most a few times.
-      spmv(a, x, q, kernel);
-      z.fill(0.0);
-      axpy(1.0, b, z);
-      axpy(-1.0, q, z);
-      const double trueNorm = norm2(z);
-      if (trueNorm <= 10.0 * target) {
+      const auto [trueNorm, trueMax] = trueResidual();
+      if (trueNorm <= 10.0 * target || (absTol > 0.0 && trueMax <= 10.0 * absTol)) {
         reason = StopReason::Converged;
         break;
       }
@@ -138,11 +148,11 @@ SolveStats solveCg(const DeviceCsr& a, const DeviceVector& b, DeviceVector& x, c
         break;
       }
       ++restarts;
-      std::tie(rz, rr) = restart();
+      sums = restart();
       continue;
     }
     if (it >= options.maxIterations) break;
-    if (!(rz > 0.0)) {
+    if (!(sums.rz > 0.0)) {
       reason = StopReason::Breakdown;
       break;
     }
@@ -155,16 +165,15 @@ SolveStats solveCg(const DeviceCsr& a, const DeviceVector& b, DeviceVector& x, c
       reason = StopReason::Breakdown;
       break;
     }
-    const double alpha = rz / pq;
-    double rzNew = 0.0;
+    const double alpha = sums.rz / pq;
+    const double rzOld = sums.rz;
     if (dinv != nullptr) {
-      std::tie(rzNew, rr) = detail::cgUpdate(alpha, p, q, *dinv, x, r);
+      sums = detail::cgUpdate(alpha, p, q, *dinv, x, r);
     } else {
-      rr = detail::cgUpdateXR(alpha, p, q, x, r);
-      rzNew = preconditioner->applyDot(r, z);
+      sums = detail::cgUpdateXR(alpha, p, q, x, r);
+      sums.rz = preconditioner->applyDot(r, z);
     }
-    const double beta = rzNew / rz;
-    rz = rzNew;
+    const double beta = sums.rz / rzOld;
     if (dinv != nullptr) {
       detail::cgDirection(beta, r, *dinv, p);
     } else {
@@ -172,18 +181,15 @@ SolveStats solveCg(const DeviceCsr& a, const DeviceVector& b, DeviceVector& x, c
     }
     ++it;
     if (options.progress && options.progressInterval > 0 && it % options.progressInterval == 0 &&
-        !options.progress(it, std::sqrt(std::max(rr, 0.0)) / bnorm)) {
+        !options.progress(it, std::sqrt(std::max(sums.rr, 0.0)) / bnorm)) {
       reason = StopReason::Cancelled;
       break;
     }
   }
   stats.iterations = it;
-  // The true relative residual of the returned x.
-  spmv(a, x, q, kernel);
-  z.fill(0.0);
-  axpy(1.0, b, z);
-  axpy(-1.0, q, z);
-  stats.relativeResidual = norm2(z) / bnorm;
+  const auto [finalNorm, finalMax] = trueResidual();
+  stats.relativeResidual = finalNorm / bnorm;
+  stats.maxResidual = finalMax;
   if (reason == StopReason::Converged && !finite(stats.relativeResidual)) reason = StopReason::NonFinite;
   return finish(reason);
 }

@@ -93,8 +93,10 @@ TEST_SUITE("fit") {
     const double delta = 0.02;
     const int n = 200;
     // 30 non-zeros a row, and 100 (rows longer than the insertion-sort cut-off of the assembly).
-    for (const auto& [target, lambda] :
+    for (const std::pair<double, double>& params :
          {std::pair{30.0, 0.0}, std::pair{30.0, 0.25}, std::pair{100.0, 0.0}}) {
+      const double target = params.first;
+      const double lambda = params.second;
       CAPTURE(target);
       CAPTURE(lambda);
       const double sigma = duplexfit::testing::sigmaForNonZeros(Shape::Sphere, n, delta, target);

@@ -77,7 +77,7 @@ TEST_SUITE("linalg") {
                               rv = randomVector(n, 6);
         const Eigen::VectorXd dv = randomVector(n, 7).cwiseAbs().array() + 0.5;
         Eigen::VectorXd results[2][3];
-        std::pair<double, double> sums[2];
+        detail::CgSums sums[2];
         int k = 0;
         for (const Device* d : {&ref, &dev}) {
           DeviceVector P = DeviceVector::upload(*d, pv, p), Q = DeviceVector::upload(*d, qv, p),
@@ -96,9 +96,19 @@ TEST_SUITE("linalg") {
         const Eigen::VectorXd pNew = dv.cwiseProduct(rNew) + 0.7 * pv;
         CHECK(maxDiff(results[1][2], pNew) <= 8 * tolFor(p));
         const double scale = std::max(1.0, static_cast<double>(n));
-        CHECK(std::abs(sums[1].first - rNew.dot(dv.cwiseProduct(rNew))) <= 8 * tolFor(p) * scale);
-        CHECK(std::abs(sums[1].second - rNew.squaredNorm()) <= 8 * tolFor(p) * scale);
-        CHECK(std::abs(sums[0].second - sums[1].second) <= 8 * tolFor(p) * scale);
+        CHECK(std::abs(sums[1].rz - rNew.dot(dv.cwiseProduct(rNew))) <= 8 * tolFor(p) * scale);
+        CHECK(std::abs(sums[1].rr - rNew.squaredNorm()) <= 8 * tolFor(p) * scale);
+        CHECK(std::abs(sums[0].rr - sums[1].rr) <= 8 * tolFor(p) * scale);
+        const double rmax = n > 0 ? rNew.cwiseAbs().maxCoeff() : 0.0;
+        CHECK(std::abs(sums[0].rmax - rmax) <= 4 * tolFor(p));
+        CHECK(std::abs(sums[1].rmax - rmax) <= 4 * tolFor(p));
+        // The variant without a diagonal computes the same x, r, r.r and max|r|.
+        DeviceVector P = DeviceVector::upload(dev, pv, p), Q = DeviceVector::upload(dev, qv, p),
+                     X = DeviceVector::upload(dev, xv, p), R = DeviceVector::upload(dev, rv, p);
+        const detail::CgSums xr = detail::cgUpdateXR(0.3, P, Q, X, R);
+        CHECK(maxDiff(R.download(), rNew) <= 4 * tolFor(p));
+        CHECK(std::abs(xr.rr - rNew.squaredNorm()) <= 8 * tolFor(p) * scale);
+        CHECK(std::abs(xr.rmax - rmax) <= 4 * tolFor(p));
       }
     }
   }
