@@ -7,6 +7,7 @@
 #include <iostream>
 #include <sstream>
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include "commands.hpp"
@@ -236,6 +237,9 @@ int cmdFit(Args& args) {
   w.key("seconds").beginObject().field("read", readSeconds).field("hierarchy", rep.secondsHierarchy);
   w.field("fit", rep.secondsTotal).field("polygonize", meshSeconds).field("write", since(t));
   w.field("total", since(start)).endObject();
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  w.field("peak_rss_mib", static_cast<double>(usage.ru_maxrss) / 1024.0);
   w.endObject();
   {
     AtomicFile f(staging.path("report.json"));

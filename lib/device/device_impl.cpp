@@ -44,6 +44,13 @@ LaunchParams chooseParams(const DeviceInfo& info) {
     p.groups = std::max<std::size_t>(64, 8 * info.computeUnits);
     p.chunkReductions = false;
   }
+  if (const char* v = std::getenv("DUPLEXFIT_REDUCTIONS"); v != nullptr && *v != '\0') {
+    const std::string mode = v;
+    if (mode != "chunk" && mode != "group") {
+      throw InvalidArgument("DUPLEXFIT_REDUCTIONS='" + mode + "' must be chunk or group");
+    }
+    p.chunkReductions = mode == "chunk";
+  }
   p.workGroup = envSize("DUPLEXFIT_WG_SIZE", p.workGroup);
   p.chunk = envSize("DUPLEXFIT_CHUNK", p.chunk);
   p.lanes = envSize("DUPLEXFIT_LANES", p.lanes);

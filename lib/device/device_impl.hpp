@@ -16,8 +16,9 @@
 
 namespace duplexfit::detail {
 
-/// Launch shapes for one device, chosen by device type; DUPLEXFIT_WG_SIZE, DUPLEXFIT_CHUNK and
-/// DUPLEXFIT_LANES override them (the values show up in benchmark headers).
+/// Launch shapes for one device, chosen by device type; DUPLEXFIT_WG_SIZE, DUPLEXFIT_CHUNK,
+/// DUPLEXFIT_LANES and DUPLEXFIT_REDUCTIONS (chunk|group) override them (the values show up in
+/// benchmark headers). Tests use the overrides to run the GPU-style kernels on a CPU device.
 struct LaunchParams {
   std::size_t workGroup = 64;   ///< local size of every launch (element-wise and group reductions)
   std::size_t chunk = 512;      ///< elements per work-item in the barrier-free chunk kernels
