@@ -178,6 +178,7 @@ int cmdFit(Args& args) {
   log("polygonizing " + std::to_string(isos.size()) + " level sets ...");
   const SurfaceResult surfaces = extractSurfaces(device, result.field, isos, surface);
   const double meshSeconds = since(t);
+  if (surfaces.touchesBoundary) log("warning: a level set still reaches the grid boundary; its mesh is open there");
   log("grid " + std::to_string(surfaces.grid.cells.x()) + "x" + std::to_string(surfaces.grid.cells.y()) + "x" +
       std::to_string(surfaces.grid.cells.z()) + ", " + std::to_string(100.0 * surfaces.stats.evaluatedFraction()) +
       "% of the nodes evaluated, " + std::to_string(meshSeconds) + " s");
@@ -233,7 +234,9 @@ int cmdFit(Args& args) {
   w.endArray();
   w.key("grid").beginObject().field("nx", surfaces.grid.cells.x()).field("ny", surfaces.grid.cells.y());
   w.field("nz", surfaces.grid.cells.z()).field("cell", surfaces.grid.cellSize().maxCoeff());
-  w.field("evaluated_fraction", surfaces.stats.evaluatedFraction()).endObject();
+  w.field("evaluated_fraction", surfaces.stats.evaluatedFraction()).field("box_growths", surfaces.boxGrowths);
+  w.field("continued_cells", surfaces.stats.continuedCells).field("touches_boundary", surfaces.touchesBoundary);
+  w.endObject();
   w.key("seconds").beginObject().field("read", readSeconds).field("hierarchy", rep.secondsHierarchy);
   w.field("fit", rep.secondsTotal).field("polygonize", meshSeconds).field("write", since(t));
   w.field("total", since(start)).endObject();

@@ -21,15 +21,18 @@ struct SurfaceOptions {
   PolygonizeOptions polygonize{};
 };
 
-/// The grid used for a field: its input bounds enlarged by the largest outward offset plus three cells
-/// (so every level set closes inside the box), with the cell size from the options.
+/// The grid used for a field: its input bounds enlarged by the largest outward offset, 5% of the largest
+/// side and three cells, with the cell size from the options. extractSurfaces grows it further when a
+/// level set still reaches its boundary.
 GridSpec surfaceGrid(const ImplicitField& field, const std::vector<double>& isoValues,
                      const SurfaceOptions& options = {});
 
 struct SurfaceResult {
   std::vector<Mesh> meshes;  ///< one per iso value, in the order given
-  GridSpec grid;
-  PolygonizeStats stats;
+  GridSpec grid;             ///< the grid finally used
+  PolygonizeStats stats;     ///< of the final extraction
+  int boxGrowths = 0;        ///< times the box was enlarged because a level set reached its boundary
+  bool touchesBoundary = false;  ///< still reaching the boundary after the last growth (mesh open there)
 };
 
 /// Meshes of {f = iso} for every iso value, in input coordinates, outward oriented (normals toward

@@ -333,14 +333,10 @@ class Refiner {
 
 }  // namespace
 
-const std::array<std::array<int, 4>, 6>& cellFaces() {
-  // Per face: the axis, the side (−1 / +1) and the corner bitmask of its 4 nodes.
-  static const std::array<std::array<int, 4>, 6> faces = {{{0, -1, 0x55, 0},
-                                                           {0, +1, 0xAA, 0},
-                                                           {1, -1, 0x33, 0},
-                                                           {1, +1, 0xCC, 0},
-                                                           {2, -1, 0x0F, 0},
-                                                           {2, +1, 0xF0, 0}}};
+const std::array<std::array<int, 3>, 6>& cellFaces() {
+  // Corner c has bit 0 = +x, bit 1 = +y, bit 2 = +z; a face's mask lists its 4 corners.
+  static const std::array<std::array<int, 3>, 6> faces = {
+      {{0, -1, 0x55}, {0, +1, 0xAA}, {1, -1, 0x33}, {1, +1, 0xCC}, {2, -1, 0x0F}, {2, +1, 0xF0}}};
   return faces;
 }
 

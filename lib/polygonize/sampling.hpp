@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <functional>
 #include <vector>
 
@@ -31,8 +32,8 @@ void sampleNodes(const FieldSampler& sampler, const GridSpec& grid,
                  const ProgressReport& report, double progressEnd, NodeStore& store,
                  PolygonizeStats& stats);
 
-/// The 6 faces of a cell: {axis, side (−1 or +1), corner bitmask of the face's 4 nodes, 0}.
-const std::array<std::array<int, 4>, 6>& cellFaces();
+/// The 6 faces of a cell: {axis, side (−1 or +1), corner bitmask of the face's 4 nodes}.
+const std::array<std::array<int, 3>, 6>& cellFaces();
 
 /// Appends to out the unmarked in-grid neighbours of a cell (corner values v, all sampled) across
 /// faces where some iso value changes sign: cells the surface enters from this one.

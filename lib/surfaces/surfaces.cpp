@@ -27,10 +27,11 @@ GridSpec surfaceGrid(const ImplicitField& field, const std::vector<double>& isoV
     }
     cell = std::max(cell, side / options.maxResolution);
   }
-  // Outward offsets (negative iso) lie outside the input bounds by |δ|.
+  // Outward offsets (negative iso) lie outside the input bounds by |δ|; the fit can also bulge a little
+  // past sparse or flat regions, hence 5% of the largest side on top.
   double pad = 0.0;
   for (double iso : isoValues) pad = std::max(pad, -iso);
-  const Eigen::Vector3d margin = Eigen::Vector3d::Constant(pad + 3.0 * cell);
+  const Eigen::Vector3d margin = Eigen::Vector3d::Constant(pad + 0.05 * side + 3.0 * cell);
   return GridSpec::fromCellSize(Eigen::AlignedBox3d(b.min() - margin, b.max() + margin), cell);
 }
 
@@ -43,10 +44,32 @@ SurfaceResult extractSurfaces(const Device& device, const ImplicitField& field, 
   const FieldSampler sampler = [&evaluator](const Points& queries, Eigen::VectorXd& values) {
     values = evaluator.evaluate(queries).values;
   };
-  PolygonizeResult r = polygonize(sampler, out.grid, isoValues, options.polygonize, progress);
-  out.meshes = std::move(r.meshes);
-  out.stats = r.stats;
-  return out;
+  // A level set that reaches the grid's boundary would be cut open there: grow the box on the sides
+  // it touches (same cell size) and extract again, a few times at most.
+  for (int attempt = 0;; ++attempt) {
+    PolygonizeResult r = polygonize(sampler, out.grid, isoValues, options.polygonize, progress);
+    const Eigen::Vector3d lo = out.grid.box.min(), hi = out.grid.box.max();
+    const double eps = 1e-9 * (hi - lo).maxCoeff();
+    Eigen::Vector3d growLo = Eigen::Vector3d::Zero(), growHi = Eigen::Vector3d::Zero();
+    const double step = 0.1 * (hi - lo).maxCoeff();
+    for (const Mesh& m : r.meshes) {
+      for (Eigen::Index v = 0; v < m.vertices.rows(); ++v) {
+        for (int a = 0; a < 3; ++a) {
+          if (m.vertices(v, a) <= lo[a] + eps) growLo[a] = step;
+          if (m.vertices(v, a) >= hi[a] - eps) growHi[a] = step;
+        }
+      }
+    }
+    out.boxGrowths = attempt;
+    if ((growLo.isZero() && growHi.isZero()) || attempt >= 3) {
+      out.meshes = std::move(r.meshes);
+      out.stats = r.stats;
+      out.touchesBoundary = !(growLo.isZero() && growHi.isZero());
+      return out;
+    }
+    const double cell = out.grid.cellSize().maxCoeff();
+    out.grid = GridSpec::fromCellSize(Eigen::AlignedBox3d(lo - growLo, hi + growHi), cell);
+  }
 }
 
 }  // namespace duplexfit
