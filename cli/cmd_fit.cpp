@@ -236,6 +236,7 @@ int cmdFit(Args& args) {
   w.field("nz", surfaces.grid.cells.z()).field("cell", surfaces.grid.cellSize().maxCoeff());
   w.field("evaluated_fraction", surfaces.stats.evaluatedFraction()).field("box_growths", surfaces.boxGrowths);
   w.field("continued_cells", surfaces.stats.continuedCells).field("touches_boundary", surfaces.touchesBoundary);
+  w.field("sampler_seconds", surfaces.stats.samplerSeconds).field("extraction_seconds", surfaces.stats.extractionSeconds);
   w.endObject();
   w.key("seconds").beginObject().field("read", readSeconds).field("hierarchy", rep.secondsHierarchy);
   w.field("fit", rep.secondsTotal).field("polygonize", meshSeconds).field("write", since(t));
