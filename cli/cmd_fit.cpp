@@ -146,6 +146,7 @@ int cmdFit(Args& args) {
   auto t = Clock::now();
   PointCloudFile file = readPointCloudWithReport(input);
   const std::size_t merged = file.points.mergeDuplicates();
+  checkFittable(file.points, input);  // errors name the file
   log("read " + std::to_string(file.report.points) + " points from " + input + " (" +
       std::to_string(merged) + " duplicates merged) in " + std::to_string(since(t)) + " s");
   const double readSeconds = since(t);

@@ -1,0 +1,193 @@
+// The duplexfit command line, run as a user would: outputs of fit and mesh, and bad input that must give a
+// clear error naming the file and element, a non-zero exit status and no partial output.
+#include <doctest/doctest.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "duplexfit/io.hpp"
+#include "shapes.hpp"
+
+#ifdef DUPLEXFIT_CLI_PATH  // the CLI is built (DUPLEXFIT_BUILD_CLI)
+
+namespace fs = std::filesystem;
+using namespace duplexfit;
+
+namespace {
+
+struct Run {
+  int status = -1;
+  std::string err;
+};
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("duplexfit-cli-test-" + std::to_string(::getpid())) / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+Run cli(const std::string& args) {
+  const fs::path errFile = fs::temp_directory_path() / ("duplexfit-cli-stderr-" + std::to_string(::getpid()));
+  const std::string cmd = std::string(DUPLEXFIT_CLI_PATH) + " " + args + " > /dev/null 2> " + errFile.string();
+  const int raw = std::system(cmd.c_str());
+  Run r;
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  std::ifstream in(errFile);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  r.err = ss.str();
+  fs::remove(errFile);
+  return r;
+}
+
+std::string readBytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+void writeText(const fs::path& p, const std::string& text) {
+  std::ofstream(p, std::ios::binary) << text;
+}
+
+// A small valid cloud (a sphere) as binary PLY.
+fs::path sphereCloud(const fs::path& dir, int n = 800) {
+  Points normals;
+  Points p = testing::fibonacciSphere(n, 0.5, &normals);
+  const fs::path path = dir / "sphere.ply";
+  writePointCloud(path.string(), PointSet(p, normals));
+  return path;
+}
+
+std::size_t filesIn(const fs::path& dir) {
+  std::size_t n = 0;
+  for (const auto& e : fs::directory_iterator(dir)) n += e.is_regular_file() || e.is_directory() ? 1 : 0;
+  return n;
+}
+
+// Expects a failing fit: non-zero status, the message mentions every part, the output folder stays empty.
+void expectFitError(const std::string& input, const std::string& options, std::initializer_list<const char*> parts) {
+  const fs::path out = scratch("out-err");
+  const Run r = cli("fit " + input + " " + options + " -o " + out.string() + " --quiet");
+  INFO("stderr: " << r.err);
+  CHECK(r.status != 0);
+  for (const char* part : parts) CHECK(r.err.find(part) != std::string::npos);
+  CHECK(filesIn(out) == 0);
+}
+
+}  // namespace
+
+TEST_SUITE("cli") {
+  TEST_CASE("cli: fit writes both meshes, the field and the report; mesh re-extracts a level set") {
+    const fs::path dir = scratch("fit");
+    const fs::path input = sphereCloud(dir);
+    const fs::path out = dir / "out";
+    const Run r = cli("fit " + input.string() + " --offset 0.1 -o " + out.string() + " --quiet --strict");
+    INFO("stderr: " << r.err);
+    REQUIRE(r.status == 0);
+    for (const char* f : {"zero.ply", "offset1.ply", "field.dpxf", "report.json"}) CHECK(fs::exists(out / f));
+    CHECK(filesIn(out) == 4);  // nothing else left behind (no staging folder)
+    const MeshTopology zero = analyzeTopology(readMesh((out / "zero.ply").string()));
+    const MeshTopology off = analyzeTopology(readMesh((out / "offset1.ply").string()));
+    CHECK(zero.components == 1);
+    CHECK(off.components == 1);
+    CHECK(off.watertight());
+    std::ifstream report(out / "report.json");
+    std::stringstream ss;
+    ss << report.rdbuf();
+    CHECK(ss.str().find("\"level_reports\"") != std::string::npos);
+    CHECK(ss.str().find("\"E0\"") != std::string::npos);
+
+    const Run m = cli("mesh " + (out / "field.dpxf").string() + " --iso 0.05 -o " + (dir / "half.obj").string() + " --quiet");
+    CHECK(m.status == 0);
+    CHECK(analyzeTopology(readMesh((dir / "half.obj").string())).components == 1);
+
+    const Run rel = cli("fit " + input.string() + " --offset 0.1,-0.05 --offset-rel -o " + (dir / "rel").string() + " --quiet --format stl");
+    CHECK(rel.status == 0);
+    CHECK(fs::exists(dir / "rel" / "offset2.stl"));
+  }
+
+  TEST_CASE("cli: bad clouds give a clear error naming the file and element, and no output") {
+    const fs::path dir = scratch("bad");
+    const std::string header = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                               "property float z\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n";
+    writeText(dir / "empty.ply", "");
+    expectFitError((dir / "empty.ply").string(), "--offset 0.1", {"empty.ply"});
+    writeText(dir / "short.ply", header + "0 0 0 0 0 1\n1 0 0 0 0 1\n");
+    expectFitError((dir / "short.ply").string(), "--offset 0.1", {"short.ply"});
+    writeText(dir / "nan.ply", header + "0 0 0 0 0 1\nnan 0 0 0 0 1\n1 1 1 0 0 1\n");
+    expectFitError((dir / "nan.ply").string(), "--offset 0.1", {"nan.ply", "1"});
+    writeText(dir / "nonormals.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                                     "property float z\nend_header\n0 0 0\n");
+    expectFitError((dir / "nonormals.ply").string(), "--offset 0.1", {"nonormals.ply", "normal"});
+    // Truncated binary.
+    const fs::path good = sphereCloud(dir);
+    const std::string bytes = readBytes(good);
+    writeText(dir / "cut.ply", bytes.substr(0, bytes.size() - 100));
+    expectFitError((dir / "cut.ply").string(), "--offset 0.1", {"cut.ply"});
+    // Too few points, all coincident, collinear, zero normals.
+    std::string few = "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\n"
+                      "property float nx\nproperty float ny\nproperty float nz\nend_header\n";
+    for (int i = 0; i < 5; ++i) few += std::to_string(i) + " 0 0 0 0 1\n";
+    writeText(dir / "few.ply", few);
+    expectFitError((dir / "few.ply").string(), "--offset 0.1", {"few.ply", "10"});
+    std::string line = "x y z nx ny nz\n";
+    std::string same, zeros;
+    for (int i = 0; i < 20; ++i) {
+      line += std::to_string(i) + " " + std::to_string(2 * i) + " 0 0 0 1\n";
+      same += "1 2 3 0 0 1\n";
+      zeros += std::to_string(i % 5) + " " + std::to_string(i / 5) + " " + std::to_string(i % 3) + " 0 0 0\n";
+    }
+    writeText(dir / "line.xyz", line.substr(line.find('\n') + 1));
+    expectFitError((dir / "line.xyz").string(), "--offset 0.1", {"line.xyz", "line"});
+    writeText(dir / "same.xyz", same);
+    expectFitError((dir / "same.xyz").string(), "--offset 0.1", {"same.xyz"});
+    writeText(dir / "zeros.xyz", zeros);
+    expectFitError((dir / "zeros.xyz").string(), "--offset 0.1", {"zeros.xyz", "normal"});
+  }
+
+  TEST_CASE("cli: bad options, an unwritable output and bad field files are clear errors") {
+    const fs::path dir = scratch("opts");
+    const std::string input = sphereCloud(dir).string();
+    expectFitError(input, "--offset 0", {"offset"});
+    expectFitError(input, "--offset 5", {"offset", "largest side"});
+    expectFitError(input, "--offset abc", {"abc"});
+    expectFitError(input, "", {"offset"});
+    expectFitError(input, "--offset 0.1 --device no-such-device", {"no-such-device", "available devices"});
+    // An output path below a regular file cannot be created.
+    writeText(dir / "file", "x");
+    const Run r = cli("fit " + input + " --offset 0.1 -o " + (dir / "file" / "sub").string() + " --quiet");
+    CHECK(r.status == 2);
+    CHECK(r.err.find("output folder") != std::string::npos);
+    // Field files: corrupt, truncated, unknown version.
+    const fs::path out = dir / "out";
+    REQUIRE(cli("fit " + input + " --offset 0.1 -o " + out.string() + " --quiet").status == 0);
+    const std::string bytes = readBytes(out / "field.dpxf");
+    std::string corrupt = bytes;
+    corrupt[bytes.size() / 2] = static_cast<char>(corrupt[bytes.size() / 2] ^ 1);
+    writeText(dir / "corrupt.dpxf", corrupt);
+    writeText(dir / "cut.dpxf", bytes.substr(0, bytes.size() / 3));
+    std::string v2 = bytes;
+    v2[8] = 2;
+    writeText(dir / "v2.dpxf", v2);
+    for (const char* name : {"corrupt.dpxf", "cut.dpxf", "v2.dpxf"}) {
+      const fs::path mesh = dir / (std::string(name) + ".ply");
+      const Run m = cli(std::string("mesh ") + (dir / name).string() + " -o " + mesh.string() + " --quiet");
+      INFO(name << ": " << m.err);
+      CHECK(m.status == 2);
+      CHECK(m.err.find(name) != std::string::npos);
+      CHECK_FALSE(fs::exists(mesh));
+    }
+  }
+}
+
+#endif  // DUPLEXFIT_CLI_PATH
