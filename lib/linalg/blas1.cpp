@@ -118,45 +118,6 @@ std::vector<double> reduceLaunch(const Device& device, Precision precision, cl::
   return sums;
 }
 
-CgSums cgUpdateXR(double alpha, const DeviceVector& p, const DeviceVector& q, DeviceVector& x, DeviceVector& r) {
-  checkCompatible("cgUpdateXR", p, q);
-  checkCompatible("cgUpdateXR", p, x);
-  checkCompatible("cgUpdateXR", p, r);
-  const std::size_t n = p.size();
-  if (n == 0) return {};
-  return dispatch(p.precision(), [&](auto zero) -> CgSums {
-    using T = decltype(zero);
-    if (p.device().isReference()) {
-      const T a = static_cast<T>(alpha);
-      const T* ps = p.storage().host<T>().data();
-      const T* qs = q.storage().host<T>().data();
-      T* xs = x.storage().host<T>().data();
-      T* rs = r.storage().host<T>().data();
-      double rr = 0.0, rmax = 0.0;
-#pragma omp parallel for schedule(static) reduction(+ : rr) reduction(max : rmax)
-      for (std::size_t i = 0; i < n; ++i) {
-        xs[i] += a * ps[i];
-        const T ri = rs[i] - a * qs[i];
-        rs[i] = ri;
-        rr += static_cast<double>(ri * ri);
-        rmax = std::max(rmax, static_cast<double>(std::abs(ri)));
-      }
-      return {0.0, rr, rmax};
-    }
-    auto& impl = *p.device().impl();
-    const char* name = impl.params().chunkReductions ? "cg_update_xr_chunk" : "cg_update_xr_group";
-    cl::Kernel& k = impl.kernel("cg", p.precision(), name);
-    setArg(k, 0, toUint(n), name);
-    setRealArg(k, 1, alpha, p.precision(), name);
-    setArg(k, 2, p.storage().buffer, name);
-    setArg(k, 3, q.storage().buffer, name);
-    setArg(k, 4, x.storage().buffer, name);
-    setArg(k, 5, r.storage().buffer, name);
-    const std::vector<double> v = reduceLaunch(p.device(), p.precision(), k, 6, n, 2, name, 1);
-    return {0.0, v[0], v[1]};
-  });
-}
-
 void vmul(const DeviceVector& d, const DeviceVector& r, DeviceVector& z) {
   checkCompatible("vmul", d, r);
   checkCompatible("vmul", r, z);
@@ -203,12 +164,16 @@ void triad(DeviceVector& a, const DeviceVector& b, const DeviceVector& c, double
   });
 }
 
-CgSums cgUpdate(double alpha, const DeviceVector& p, const DeviceVector& q, const DeviceVector& dinv,
-                DeviceVector& x, DeviceVector& r) {
-  checkCompatible("cgUpdate", p, q);
-  checkCompatible("cgUpdate", p, dinv);
-  checkCompatible("cgUpdate", p, x);
-  checkCompatible("cgUpdate", p, r);
+namespace {
+
+// x ← x + αp, r ← r − αq with the reductions r·D·r (when dinv is given), r·r and max|r|: the body of both
+// fused CG updates (kernels cg_update_* and cg_update_xr_*).
+CgSums cgUpdateImpl(const char* op, double alpha, const DeviceVector& p, const DeviceVector& q,
+                    const DeviceVector* dinv, DeviceVector& x, DeviceVector& r) {
+  checkCompatible(op, p, q);
+  if (dinv != nullptr) checkCompatible(op, p, *dinv);
+  checkCompatible(op, p, x);
+  checkCompatible(op, p, r);
   const std::size_t n = p.size();
   if (n == 0) return {};
   return dispatch(p.precision(), [&](auto zero) -> CgSums {
@@ -217,7 +182,7 @@ CgSums cgUpdate(double alpha, const DeviceVector& p, const DeviceVector& q, cons
       const T a = static_cast<T>(alpha);
       const T* ps = p.storage().host<T>().data();
       const T* qs = q.storage().host<T>().data();
-      const T* ds = dinv.storage().host<T>().data();
+      const T* ds = dinv != nullptr ? dinv->storage().host<T>().data() : nullptr;
       T* xs = x.storage().host<T>().data();
       T* rs = r.storage().host<T>().data();
       double rz = 0.0, rr = 0.0, rmax = 0.0;
@@ -226,25 +191,43 @@ CgSums cgUpdate(double alpha, const DeviceVector& p, const DeviceVector& q, cons
         xs[i] += a * ps[i];
         const T ri = rs[i] - a * qs[i];
         rs[i] = ri;
-        rz += static_cast<double>(ri * ds[i] * ri);
+        if (ds != nullptr) rz += static_cast<double>(ri * ds[i] * ri);
         rr += static_cast<double>(ri * ri);
         rmax = std::max(rmax, static_cast<double>(std::abs(ri)));
       }
       return {rz, rr, rmax};
     }
     auto& impl = *p.device().impl();
-    const char* name = impl.params().chunkReductions ? "cg_update_chunk" : "cg_update_group";
+    const bool chunk = impl.params().chunkReductions;
+    const char* name = dinv != nullptr ? (chunk ? "cg_update_chunk" : "cg_update_group")
+                                       : (chunk ? "cg_update_xr_chunk" : "cg_update_xr_group");
     cl::Kernel& k = impl.kernel("cg", p.precision(), name);
-    setArg(k, 0, toUint(n), name);
-    setRealArg(k, 1, alpha, p.precision(), name);
-    setArg(k, 2, p.storage().buffer, name);
-    setArg(k, 3, q.storage().buffer, name);
-    setArg(k, 4, dinv.storage().buffer, name);
-    setArg(k, 5, x.storage().buffer, name);
-    setArg(k, 6, r.storage().buffer, name);
-    const std::vector<double> v = reduceLaunch(p.device(), p.precision(), k, 7, n, 3, name, 2);
-    return {v[0], v[1], v[2]};
+    cl_uint arg = 0;
+    setArg(k, arg++, toUint(n), name);
+    setRealArg(k, arg++, alpha, p.precision(), name);
+    setArg(k, arg++, p.storage().buffer, name);
+    setArg(k, arg++, q.storage().buffer, name);
+    if (dinv != nullptr) setArg(k, arg++, dinv->storage().buffer, name);
+    setArg(k, arg++, x.storage().buffer, name);
+    setArg(k, arg++, r.storage().buffer, name);
+    if (dinv != nullptr) {
+      const std::vector<double> v = reduceLaunch(p.device(), p.precision(), k, arg, n, 3, name, 2);
+      return {v[0], v[1], v[2]};
+    }
+    const std::vector<double> v = reduceLaunch(p.device(), p.precision(), k, arg, n, 2, name, 1);
+    return {0.0, v[0], v[1]};
   });
+}
+
+}  // namespace
+
+CgSums cgUpdate(double alpha, const DeviceVector& p, const DeviceVector& q, const DeviceVector& dinv,
+                DeviceVector& x, DeviceVector& r) {
+  return cgUpdateImpl("cgUpdate", alpha, p, q, &dinv, x, r);
+}
+
+CgSums cgUpdateXR(double alpha, const DeviceVector& p, const DeviceVector& q, DeviceVector& x, DeviceVector& r) {
+  return cgUpdateImpl("cgUpdateXR", alpha, p, q, nullptr, x, r);
 }
 
 void cgDirection(double beta, const DeviceVector& r, const DeviceVector& dinv, DeviceVector& p) {
