@@ -81,7 +81,10 @@ struct FitReport {
   int levels = 0;                      ///< M
   bool stoppedEarly = false;           ///< the ε_fit test ended the fit before level M
   std::vector<LevelReport> levelReports;
-  double e0 = 0.0;                     ///< max |f(p)| over the input points (input units)
+  /// max |f(p)| over the input points (input units); for points that are finest-level centres it comes
+  /// from that level's final residual (coarser levels as evaluated in the fit's precision), the others
+  /// (merged away, dropped) are evaluated on the device
+  double e0 = 0.0;
   /// per offset: max |f(q) − δ| over the valid finest-level offset points (from the final residual, in
   /// double; 0 when the fit stopped early)
   std::vector<double> eDelta;

@@ -118,6 +118,13 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   }
   Eigen::Index kept = 0;
   for (char k : keep) kept += k;
+  {
+    std::vector<char> isCentre(static_cast<std::size_t>(points.rows()), 0);
+    for (std::size_t k = 0; k < surfaceRows.size(); ++k) isCentre[static_cast<std::size_t>(surfaceRows[k])] = keep[k];
+    for (Eigen::Index i = 0; i < points.rows(); ++i) {
+      if (isCentre[static_cast<std::size_t>(i)] == 0) out.surfaceNotCentres.push_back(i);
+    }
+  }
   out.merged = static_cast<std::size_t>(total - kept);
   out.centres.resize(kept, 3);
   out.targets.resize(kept);
@@ -148,6 +155,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
     out.targets[r] = targets[i];
     const int b = blockOf[static_cast<std::size_t>(i)];
     if (b >= 1 && b <= static_cast<int>(options.offsets.size())) out.offsetRows[static_cast<std::size_t>(b - 1)].push_back(r);
+    if (b == 0) out.surfaceCentres.emplace_back(surfaceRows[static_cast<std::size_t>(i)], r);
     ++r;
   }
   return out;

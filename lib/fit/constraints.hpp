@@ -29,6 +29,10 @@ struct LevelConstraints {
   std::size_t merged = 0;
   /// Rows of `centres` that are valid offset points of offset j (for E_δ), per offset.
   std::vector<std::vector<Eigen::Index>> offsetRows;
+  /// Pairs (input point index, centre row) of the surface points kept as centres, and the input
+  /// indices of surface points that were merged away or dropped (for E_0).
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> surfaceCentres;
+  std::vector<Eigen::Index> surfaceNotCentres;
 };
 
 /// Builds the level's centres from its points P^k and inward normals ν (unit or zero).

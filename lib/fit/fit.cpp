@@ -100,6 +100,9 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
 
   ImplicitField field(norm, -1.0, {}, rep.offsets, bounds);
   std::vector<FieldLevel> fitted;
+  bool finestIsInput = false;              // the last level solved was level M (its points are the input)
+  double e0Centres = 0.0;                  // max |f| at input points that are level-M centres
+  std::vector<Eigen::Index> notCentres;    // input points that are not (merged away or dropped)
   for (int k = 1; k <= levels; ++k) {
     LevelReport lr;
     lr.level = k;
@@ -176,6 +179,12 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
       // E_δ (§8.1) at the finest level's valid offset points: there b − A·w = t − f_M(c) exactly, so
       // the residual (in double on the host) gives the errors without evaluating the field again.
       const Eigen::VectorXd residual = b - a.multiply(fitted.back().weights);
+      // E_0 likewise at the input points that are centres of this level (surface rows: t = 0).
+      e0Centres = 0.0;
+      for (const auto& [input, row] : c.surfaceCentres) e0Centres = std::max(e0Centres, std::abs(residual[row]));
+      e0Centres /= norm.scale;
+      notCentres = c.surfaceNotCentres;
+      finestIsInput = true;
       rep.eDelta.assign(deltas.size(), 0.0);
       for (std::size_t j = 0; j < deltas.size(); ++j) {
         for (const Eigen::Index r : c.offsetRows[j]) {
@@ -186,10 +195,21 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   }
   field = ImplicitField(norm, -1.0, fitted, rep.offsets, bounds);
 
-  // E_0 (§8.1): max |f| at every input point (merged ones included), evaluated on the device.
+  // E_0 (§8.1): max |f| at every input point. Those that are level-M centres have it from the final
+  // residual; the others (merged away, dropped, or all of them after an early stop) are evaluated.
   report(progress, {"errors", 0, levels, 0, 0.0, ""});
-  const Eigen::VectorXd f0 = FieldEvaluator(device, field, options.precision).evaluate(points.positions()).values;
-  rep.e0 = f0.size() > 0 ? f0.cwiseAbs().maxCoeff() : 0.0;
+  Points rest;
+  if (finestIsInput) {
+    rest.resize(static_cast<Eigen::Index>(notCentres.size()), 3);
+    for (std::size_t k = 0; k < notCentres.size(); ++k) rest.row(static_cast<Eigen::Index>(k)) = points.positions().row(notCentres[k]);
+    rep.e0 = e0Centres;
+  } else {
+    rest = points.positions();
+  }
+  if (rest.rows() > 0) {
+    const Eigen::VectorXd f0 = FieldEvaluator(device, field, options.precision).evaluate(rest).values;
+    rep.e0 = std::max(rep.e0, f0.cwiseAbs().maxCoeff());
+  }
   if (rep.eDelta.size() != deltas.size()) rep.eDelta.assign(deltas.size(), 0.0);  // stopped early
   rep.secondsTotal = since(start);
   return FitResult{std::move(field), std::move(rep)};

@@ -47,6 +47,11 @@ TEST_SUITE("fit") {
       }
       CHECK(r.report.e0 <= 1e-4);
       CHECK(r.report.eDelta[0] <= 1e-4);
+      // E_0 (taken from the final residual where possible) equals max |f| over the input points, up to
+      // the float evaluation error of the coarser levels in that residual.
+      const double direct = r.field.evaluate(Device::reference(), cloud.positions(), FieldDerivatives::None,
+                                             Precision::Double).values.cwiseAbs().maxCoeff();
+      CHECK(std::abs(r.report.e0 - direct) <= 1e-6);
       CHECK(sphereError(r.field, d, 0.5, 0.0) <= 1e-3);
       CHECK(sphereError(r.field, d, 0.4, 0.1) <= 1e-3);  // within 1% of δ on the exact offset surface
       // Sign and level sets elsewhere: outside negative, inside above δ, far away −1.
