@@ -69,7 +69,8 @@ struct PolygonizeOptions {
   double lipschitz = 2.0;
   /// Cells per coarse block edge: 2, 4, 8, 16, 32 or 64 (also the edge of the storage tiles, in
   /// nodes). Blocks that are not skipped are halved recursively (octree style, tested again at each
-  /// level) down to blocks of 2 cells per edge, whose nodes are all sampled.
+  /// level) down to blocks of 2 cells per edge; there each cell is tested against the balls of the
+  /// block's corners before its nodes are sampled.
   int coarseStep = 8;
   /// Most points per sampler call (≥ 1). Sampling requests are gathered across many blocks up to
   /// this size.

@@ -287,15 +287,7 @@ class Refiner {
     if (skippable(b)) return;
     if (coarseLevel) ++stats_.refinedBlocks;
     if (maxExtent <= 2) {
-      // A leaf: sample all its nodes and contour all its cells.
-      for (int k = b.lo[2]; k <= b.hi[2]; ++k) {
-        for (int j = b.lo[1]; j <= b.hi[1]; ++j) {
-          for (int i = b.lo[0]; i <= b.hi[0]; ++i) {
-            batch_.request(i, j, k);
-            if (i < b.hi[0] && j < b.hi[1] && k < b.hi[2]) store_.markCell(i, j, k);
-          }
-        }
-      }
+      refineCells(b);
       return;
     }
     // Halve every axis with at least 2 cells; sample the new lattice nodes; test the children at
@@ -323,8 +315,105 @@ class Refiner {
     }
   }
 
+  /// The last level (blocks of at most 2 cells per edge): each cell is tested before any of its
+  /// nodes is sampled, against the balls of the block's 8 sampled corners (radius |f − c| / L;
+  /// f ≠ c inside each). A connected cell covered by such balls holds no point with f = c, so its
+  /// corners all lie on one side of c and it has no crossing. Only the cells not covered for some
+  /// iso value get their nodes sampled and are contoured.
+  void refineCells(const Block& b) {
+    double f[8];
+    for (int c = 0; c < 8; ++c) {
+      f[c] = static_cast<double>(store_.value(
+          (c & 1) ? b.hi[0] : b.lo[0], (c & 2) ? b.hi[1] : b.lo[1], (c & 4) ? b.hi[2] : b.lo[2]));
+    }
+    // Per iso value: whether all corners lie strictly on one side (with a sign change among the
+    // corners every cell is sampled, as the coarser levels do, so that a field steeper than the
+    // bound still gives the continuation surfaces to follow), and the squared ball radii.
+    std::vector<char>& oneSide = oneSide_;
+    std::vector<std::array<double, 8>>& rho2 = rho2_;
+    oneSide.assign(isos_.size(), 0);
+    rho2.resize(isos_.size());
+    for (std::size_t q = 0; q < isos_.size(); ++q) {
+      int above = 0, below = 0;
+      for (int c = 0; c < 8; ++c) {
+        above += f[c] > isos_[q];
+        below += f[c] < isos_[q];
+        const double r = std::abs(f[c] - isos_[q]) / lipschitz_;
+        rho2[q][static_cast<std::size_t>(c)] = r * r;
+      }
+      oneSide[q] = above == 8 || below == 8;  // false for a NaN corner too
+    }
+    Balls balls;
+    for (int c = 0; c < 8; ++c) {
+      for (int a = 0; a < 3; ++a) {
+        balls.centre[c][a] = ((c >> a) & 1 ? b.hi[a] - b.lo[a] : 0) * h_[a];
+      }
+    }
+    for (int k = b.lo[2]; k < b.hi[2]; ++k) {
+      for (int j = b.lo[1]; j < b.hi[1]; ++j) {
+        for (int i = b.lo[0]; i < b.hi[0]; ++i) {
+          const int idx[3] = {i, j, k};
+          std::array<double, 3> lo{}, hi{};
+          for (int a = 0; a < 3; ++a) {
+            lo[a] = (idx[a] - b.lo[a]) * h_[a];
+            hi[a] = lo[a] + h_[a];
+          }
+          bool covered = true;
+          for (std::size_t q = 0; q < isos_.size() && covered; ++q) {
+            covered = oneSide[q] && (balls.rho2 = rho2[q], balls.cover(lo, hi, kCoverDepth));
+          }
+          if (covered) continue;
+          for (int corner = 0; corner < 8; ++corner) {
+            batch_.request(i + (corner & 1), j + ((corner >> 1) & 1), k + ((corner >> 2) & 1));
+          }
+          store_.markCell(i, j, k);
+        }
+      }
+    }
+  }
+
+  /// Subdivisions tried when covering a cell by balls (each halves the box on every axis).
+  static constexpr int kCoverDepth = 2;
+
+  /// Open balls around a block's corners (block-local coordinates).
+  struct Balls {
+    double centre[8][3];
+    std::array<double, 8> rho2;
+
+    /// True when the box [lo, hi] lies in the union of the balls: in one ball, or (depth > 0) each
+    /// of its 8 halves is covered. A box whose centre is in no ball is never covered.
+    bool cover(const std::array<double, 3>& lo, const std::array<double, 3>& hi, int depth) const {
+      std::array<double, 3> mid{};
+      for (int a = 0; a < 3; ++a) mid[a] = 0.5 * (lo[a] + hi[a]);
+      bool centreIn = false;
+      for (int c = 0; c < 8; ++c) {
+        double far2 = 0.0, mid2 = 0.0;
+        for (int a = 0; a < 3; ++a) {
+          const double d = std::max(std::abs(lo[a] - centre[c][a]), std::abs(hi[a] - centre[c][a]));
+          const double m = mid[a] - centre[c][a];
+          far2 += d * d;
+          mid2 += m * m;
+        }
+        if (far2 < rho2[c]) return true;
+        centreIn = centreIn || mid2 < rho2[c];
+      }
+      if (!centreIn || depth == 0) return false;
+      for (int s = 0; s < 8; ++s) {
+        std::array<double, 3> l{}, u{};
+        for (int a = 0; a < 3; ++a) {
+          l[a] = (s >> a) & 1 ? mid[a] : lo[a];
+          u[a] = (s >> a) & 1 ? hi[a] : mid[a];
+        }
+        if (!cover(l, u, depth - 1)) return false;
+      }
+      return true;
+    }
+  };
+
   const std::vector<double>& isos_;
   double lipschitz_;
+  std::vector<char> oneSide_;                 ///< refineCells scratch
+  std::vector<std::array<double, 8>> rho2_;  ///< refineCells scratch
   NodeStore& store_;
   BatchSampler& batch_;
   PolygonizeStats& stats_;
