@@ -11,9 +11,18 @@ inline real csr_row_dot(const uint row, __global const uint* restrict row_ptr,
                         __global const real* restrict x) {
   const uint b = row_ptr[row];
   const uint e = row_ptr[row + 1];
-  real s = 0;
-  for (uint k = b; k < e; ++k) s += val[k] * x[col[k]];
-  return s;
+  /* Four independent partial sums: without them the row is one serial chain of dependent
+   * multiply-adds, bound by the FMA latency rather than by memory on CPU devices (docs/benchmarks.md). */
+  real s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+  uint k = b;
+  for (; k + 4 <= e; k += 4) {
+    s0 += val[k] * x[col[k]];
+    s1 += val[k + 1] * x[col[k + 1]];
+    s2 += val[k + 2] * x[col[k + 2]];
+    s3 += val[k + 3] * x[col[k + 3]];
+  }
+  for (; k < e; ++k) s0 += val[k] * x[col[k]];
+  return (s0 + s1) + (s2 + s3);
 }
 
 __kernel void spmv_csr_row(const uint rows, __global const uint* restrict row_ptr,
