@@ -154,6 +154,7 @@ Options parseOptions(int argc, char** argv) {
       o.deviceSpecs.push_back(value);
     } else if (key == "--sizes") {
       need();
+      o.unknowns.clear();  // the last --sizes wins
       for (const std::string& s : splitList(value)) {
         const long n = parseCount(s);
         if (n < 3) throw InvalidArgument("--sizes: a system needs at least 3 unknowns, got '" + s + "'");
@@ -408,6 +409,8 @@ DeviceLabel DeviceLabel::of(const Device& device) {
     l.driver = info.driverVersion;
     l.params = device.impl()->params().describe();
   }
+  const auto gib = [](std::uint64_t bytes) { return fmt(static_cast<double>(bytes) / double(1ull << 30), 1); };
+  l.memory = gib(info.globalMemBytes) + " GiB, buffers <= " + gib(device.maxAllocBytes()) + " GiB";
   return l;
 }
 

@@ -136,6 +136,7 @@ struct BuildInfo {
 /// What a table header names about a device.
 struct DeviceLabel {
   std::string spec, name, platform, driver, params;
+  std::string memory;  ///< global memory and largest buffer, e.g. "17.0 GiB, buffers <= 4.3 GiB"
   static DeviceLabel of(const Device& device);
 };
 
