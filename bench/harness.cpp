@@ -366,6 +366,8 @@ BuildInfo BuildInfo::current() {
   b.buildType = DUPLEXFIT_BUILD_TYPE;
   b.compiler = DUPLEXFIT_COMPILER;
   b.flags = DUPLEXFIT_CXX_FLAGS;
+  b.flags.erase(0, b.flags.find_first_not_of(' '));
+  b.flags.erase(b.flags.find_last_not_of(' ') + 1);
   b.git = DUPLEXFIT_GIT_DESCRIBE;
 #ifndef NDEBUG
   b.buildType += " (assertions on)";
