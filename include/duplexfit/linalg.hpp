@@ -144,7 +144,10 @@ class BlockJacobiPreconditioner final : public Preconditioner {
 
 /// Why a CG solve stopped.
 enum class StopReason {
-  Converged,       ///< ‖b − Ax‖ ≤ tol·‖b‖, or max|b − Ax| ≤ the absolute tolerance
+  Converged,       ///< the recursive residual met ‖r‖ ≤ tol·‖b‖ (or max|r_i| ≤ the absolute tolerance) and
+                   ///< the true residual b − Ax, recomputed, is within 10× of it (float rounding makes the
+                   ///< two drift apart; the solver restarts from the true residual up to 3 times before
+                   ///< reporting Stagnated). SolveStats::relativeResidual is always the true one.
   ZeroRhs,         ///< b = 0: x = 0 is exact
   IterationLimit,  ///< maxIterations reached
   Breakdown,       ///< pᵀAp ≤ 0 or rᵀz ≤ 0: the matrix or preconditioner is not positive definite

@@ -104,9 +104,10 @@ std::uint64_t physicalMemory() {
   return static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(pageSize);
 }
 
-// PoCL caps its CPU device at 4 GiB in all (2 GiB a buffer) unless POCL_MEMORY_LIMIT (GiB) is set
-// (docs/pocl-notes.md). Large double systems need more, so raise it to 3/4 of the host's memory unless
-// the user chose a value. Must happen before PoCL initialises, i.e. before the first clGetPlatformIDs.
+// Some PoCL builds cap their CPU device at 4 GiB in all (2 GiB a buffer) unless POCL_MEMORY_LIMIT (GiB)
+// is set (docs/pocl-notes.md); others (PoCL 3.1 here) default higher and cap larger requests at their
+// own limit. Ask for 3/4 of the host's memory unless the user chose a value; the device's reported
+// limits are what buffers are checked against. Must happen before the first clGetPlatformIDs.
 void preparePoclEnvironment() {
   static std::once_flag once;
   std::call_once(once, [] {
