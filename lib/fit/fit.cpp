@@ -98,7 +98,6 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   rep.levels = levels;
   rep.secondsHierarchy = since(t);
 
-  ImplicitField field(norm, -1.0, {}, rep.offsets, bounds);
   std::vector<FieldLevel> fitted;
   bool finestIsInput = false;              // the last level solved was level M (its points are the input)
   double e0Centres = 0.0;                  // max |f| at input points that are level-M centres
@@ -193,7 +192,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
       }
     }
   }
-  field = ImplicitField(norm, -1.0, fitted, rep.offsets, bounds);
+  ImplicitField field(norm, -1.0, std::move(fitted), rep.offsets, bounds);
 
   // E_0 (§8.1): max |f| at every input point. Those that are level-M centres have it from the final
   // residual; the others (merged away, dropped, or all of them after an early stop) are evaluated.
