@@ -8,9 +8,27 @@ namespace duplexfit::cli {
 
 int cmdFit(Args& args);
 int cmdMesh(Args& args);
+int cmdMeasure(Args& args);     // cmd_measure.cpp
+int cmdCheck(Args& args);       // cmd_measure.cpp
+int cmdSection(Args& args);     // cmd_section.cpp
+int cmdSlice(Args& args);       // cmd_slice.cpp
+int cmdDenoise(Args& args);     // cmd_preprocess.cpp
+int cmdNormals(Args& args);     // cmd_preprocess.cpp
 
 /// Options that take a value, per command (everything else is a flag).
 extern const std::vector<std::string> kFitValued;
 extern const std::vector<std::string> kMeshValued;
+extern const std::vector<std::string> kMeasureValued;
+extern const std::vector<std::string> kCheckValued;
+extern const std::vector<std::string> kSectionValued;
+extern const std::vector<std::string> kSliceValued;
+extern const std::vector<std::string> kDenoiseValued;
+extern const std::vector<std::string> kNormalsValued;
+
+/// Each module's part of `duplexfit --help` (indented like main.cpp's, ending in a newline).
+extern const char* const kMeasureHelp;   // measure and check
+extern const char* const kSectionHelp;
+extern const char* const kSliceHelp;
+extern const char* const kPreprocessHelp;  // denoise and normals
 
 }  // namespace duplexfit::cli

@@ -65,7 +65,8 @@ commands:
       --drop-zero-normals           drop points whose normal is zero instead of keeping them at f = 0
   mesh FIELD         extract one level set of a saved field: --iso V (default 0) -o OUT.ply|obj|stl
                      [--device SPEC] [--cell H | --resolution R]
-  --version, --help
+)";
+const char* kHelpTail = R"(  --version, --help
 
 Progress goes to stderr; --quiet silences it.
 )";
@@ -242,12 +243,13 @@ int cmdSolve(Args& args) {
 int main(int argc, char** argv) {
   try {
     if (argc < 2) {
-      std::cerr << kHelp;
+      std::cerr << kHelp << kHelpTail;
       return kUsage;
     }
     const std::string cmd = argv[1];
     if (cmd == "--help" || cmd == "-h" || cmd == "help") {
-      std::cout << kHelp;
+      std::cout << kHelp << cli::kMeasureHelp << cli::kSectionHelp << cli::kSliceHelp << cli::kPreprocessHelp
+                << kHelpTail;
       return 0;
     }
     if (cmd == "--version") {
@@ -265,6 +267,30 @@ int main(int argc, char** argv) {
     if (cmd == "mesh") {
       Args args(argc, argv, 2, cli::kMeshValued);
       return cli::cmdMesh(args);
+    }
+    if (cmd == "measure") {
+      Args args(argc, argv, 2, cli::kMeasureValued);
+      return cli::cmdMeasure(args);
+    }
+    if (cmd == "check") {
+      Args args(argc, argv, 2, cli::kCheckValued);
+      return cli::cmdCheck(args);
+    }
+    if (cmd == "section") {
+      Args args(argc, argv, 2, cli::kSectionValued);
+      return cli::cmdSection(args);
+    }
+    if (cmd == "slice") {
+      Args args(argc, argv, 2, cli::kSliceValued);
+      return cli::cmdSlice(args);
+    }
+    if (cmd == "denoise") {
+      Args args(argc, argv, 2, cli::kDenoiseValued);
+      return cli::cmdDenoise(args);
+    }
+    if (cmd == "normals") {
+      Args args(argc, argv, 2, cli::kNormalsValued);
+      return cli::cmdNormals(args);
     }
     if (cmd == "solve") {
       Args args(argc, argv, 2, {"device", "precision", "points", "delta", "nnz", "tol", "max-iterations"});

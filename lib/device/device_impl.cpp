@@ -79,6 +79,7 @@ const std::vector<std::pair<std::string, std::vector<std::string>>>& programTabl
       {"cg", {"common", "cg_fused"}},
       {"field", {"common", "eval_field"}},
       {"precond", {"common", "precond"}},
+      {"preprocess", {"common", "preprocess"}},
   };
   return table;
 }

@@ -1,0 +1,1 @@
+// Point-cloud pre-processing kernels (bilateral filter, normal estimation). Program "preprocess".

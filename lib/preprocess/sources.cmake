@@ -1,0 +1,1 @@
+# Sources of the preprocess module, relative to lib/ (appended to DUPLEXFIT_MODULE_SOURCES).

@@ -1,0 +1,1 @@
+# Sources of the slice module, relative to lib/ (appended to DUPLEXFIT_MODULE_SOURCES).

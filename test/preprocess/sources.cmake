@@ -1,0 +1,1 @@
+# Test sources of the preprocess module, relative to test/ (appended to DUPLEXFIT_MODULE_TESTS).

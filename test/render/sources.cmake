@@ -1,0 +1,1 @@
+# Test sources of the render module, relative to test/ (appended to DUPLEXFIT_MODULE_TESTS).
