@@ -102,6 +102,37 @@ void writeTopology(JsonWriter& w, const MeshTopology& t) {
       .endObject();
 }
 
+void writeFitReport(JsonWriter& w, const FitReport& rep) {
+  w.field("zero_normals", rep.zeroNormals).field("device", rep.device).field("precision", rep.precision);
+  w.key("offsets").beginArray();
+  for (double d : rep.offsets) w.value(d);
+  w.endArray();
+  w.field("off_surface_side", rep.offSurfaceSide).field("sigma0", rep.sigma0).field("sigma1", rep.sigma1);
+  w.field("levels", rep.levels).field("stopped_early", rep.stoppedEarly);
+  w.key("level_reports").beginArray();
+  for (const LevelReport& l : rep.levelReports) {
+    w.beginObject().field("level", l.level).field("sigma", l.sigma).field("surface_points", l.surfacePoints);
+    w.key("offset_candidates").beginArray();
+    for (auto v : l.offsetCandidates) w.value(v);
+    w.endArray().key("offset_kept").beginArray();
+    for (auto v : l.offsetKept) w.value(v);
+    w.endArray();
+    w.field("off_surface_candidates", l.offSurfaceCandidates).field("off_surface_kept", l.offSurfaceKept);
+    w.field("merged_centres", l.mergedCentres).field("centres", l.centres).field("nonzeros", l.nonZeros);
+    w.field("max_residual_before", l.maxResidualBefore);
+    w.key("cg").beginObject().field("converged", l.solve.converged).field("stop_reason", stopReasonName(l.solve.reason));
+    w.field("iterations", l.solve.iterations).field("relative_residual", l.solve.relativeResidual);
+    w.field("tolerance", l.solve.tolerance).endObject();
+    w.key("seconds").beginObject().field("constraints", l.secondsConstraints).field("residual", l.secondsResidual);
+    w.field("assembly", l.secondsAssembly).field("solve", l.secondsSolve).endObject();
+    w.endObject();
+  }
+  w.endArray();
+  w.field("E0", rep.e0).key("Edelta").beginArray();
+  for (double e : rep.eDelta) w.value(e);
+  w.endArray();
+}
+
 std::string meshExtension(Args& args) {
   const std::string f = args.str("format", "ply");
   if (f != "ply" && f != "obj" && f != "stl") throw UsageError("--format must be ply, obj or stl");
@@ -135,6 +166,7 @@ int cmdFit(Args& args) {
   surface.precision = options.precision;
   const std::string ext = meshExtension(args);
   const bool strict = args.flag("strict");
+  const bool separate = args.flag("separate");
   const fs::path outDir = args.str("output", ".");
   const Device device = openDevice(args, log);
   args.finish(1);
@@ -151,7 +183,7 @@ int cmdFit(Args& args) {
       std::to_string(merged) + " duplicates merged) in " + std::to_string(since(t)) + " s");
   const double readSeconds = since(t);
 
-  FitResult result = fit(device, file.points, options, [&](const FitProgress& p) {
+  const FitProgressCallback progress = [&](const FitProgress& p) {
     if (quiet) return true;
     if (p.stage == "solve" && p.iteration > 0) {
       std::cerr << "  level " << p.level << "/" << p.levels << "  CG iteration " << p.iteration << "  residual "
@@ -163,13 +195,30 @@ int cmdFit(Args& args) {
       std::cerr << p.stage << (p.message.empty() ? "" : ": " + p.message) << "\n";
     }
     return true;
-  });
+  };
+  // Duplex mode: one field, every surface a level set of it. Separate mode: one field per surface, each
+  // surface the 0-level of its own field (the baseline of the paper's Table 1).
+  FitResult result;
+  SeparateFitResult sep;
+  if (separate) {
+    sep = fitSeparate(device, file.points, options, progress);
+    result.report = sep.zeroReport;
+    result.report.offsets = sep.offsetDeltas;
+    result.report.secondsTotal = sep.secondsTotal;
+    for (const FitReport& r : sep.offsetReports) result.report.eDelta.push_back(r.e0);  // each at its own points
+  } else {
+    result = fit(device, file.points, options, progress);
+  }
   FitReport& rep = result.report;
   rep.duplicatesMerged = merged;
-  for (const LevelReport& l : rep.levelReports) {
-    if (l.solve.iterations > 0 && !l.solve.converged) {
-      log("warning: level " + std::to_string(l.level) + " CG did not converge (" + stopReasonName(l.solve.reason) +
-          ", residual " + std::to_string(l.solve.relativeResidual) + ")");
+  std::vector<const FitReport*> allReports{&rep};
+  for (const FitReport& r : sep.offsetReports) allReports.push_back(&r);
+  for (const FitReport* r : allReports) {
+    for (const LevelReport& l : r->levelReports) {
+      if (l.solve.iterations > 0 && !l.solve.converged) {
+        log("warning: level " + std::to_string(l.level) + " CG did not converge (" + stopReasonName(l.solve.reason) +
+            ", residual " + std::to_string(l.solve.relativeResidual) + ")");
+      }
     }
   }
 
@@ -177,9 +226,30 @@ int cmdFit(Args& args) {
   std::vector<double> isos{0.0};
   isos.insert(isos.end(), rep.offsets.begin(), rep.offsets.end());
   log("polygonizing " + std::to_string(isos.size()) + " level sets ...");
-  const SurfaceResult surfaces = extractSurfaces(device, result.field, isos, surface);
+  std::vector<SurfaceResult> extracted;
+  std::vector<Mesh> meshes;
+  if (!separate) {
+    extracted.push_back(extractSurfaces(device, result.field, isos, surface));
+    meshes = std::move(extracted.back().meshes);
+  } else {
+    // The separate fields share the zero field's grid cell unless the user chose one, so that both modes
+    // mesh at the same resolution.
+    SurfaceOptions same = surface;
+    if (same.cell <= 0.0 && same.resolution <= 0) {
+      same.cell = surfaceGrid(sep.zero, isos, surface).cellSize().maxCoeff();
+    }
+    extracted.push_back(extractSurfaces(device, sep.zero, {0.0}, same));
+    meshes.push_back(std::move(extracted.back().meshes[0]));
+    for (const ImplicitField& f : sep.offsets) {
+      extracted.push_back(extractSurfaces(device, f, {0.0}, same));
+      meshes.push_back(std::move(extracted.back().meshes[0]));
+    }
+  }
+  const SurfaceResult& surfaces = extracted.front();
   const double meshSeconds = since(t);
-  if (surfaces.touchesBoundary) log("warning: a level set still reaches the grid boundary; its mesh is open there");
+  for (const SurfaceResult& e : extracted) {
+    if (e.touchesBoundary) log("warning: a level set still reaches the grid boundary; its mesh is open there");
+  }
   log("grid " + std::to_string(surfaces.grid.cells.x()) + "x" + std::to_string(surfaces.grid.cells.y()) + "x" +
       std::to_string(surfaces.grid.cells.z()) + ", " + std::to_string(100.0 * surfaces.stats.evaluatedFraction()) +
       "% of the nodes evaluated, " + std::to_string(meshSeconds) + " s");
@@ -187,48 +257,52 @@ int cmdFit(Args& args) {
   t = Clock::now();
   std::vector<std::string> meshNames;
   std::vector<MeshTopology> topo;
-  for (std::size_t i = 0; i < surfaces.meshes.size(); ++i) {
+  for (std::size_t i = 0; i < meshes.size(); ++i) {
     const std::string name = i == 0 ? "zero" + ext : "offset" + std::to_string(i) + ext;
-    writeMesh(staging.path(name), surfaces.meshes[i]);
+    writeMesh(staging.path(name), meshes[i]);
     meshNames.push_back(name);
-    topo.push_back(analyzeTopology(surfaces.meshes[i]));
+    topo.push_back(analyzeTopology(meshes[i]));
   }
-  result.field.save(staging.path("field.dpxf"));
+  std::vector<std::string> fieldNames;
+  if (!separate) {
+    result.field.save(staging.path("field.dpxf"));
+    fieldNames.push_back("field.dpxf");
+  } else {
+    sep.zero.save(staging.path("field.dpxf"));
+    fieldNames.push_back("field.dpxf");
+    for (std::size_t j = 0; j < sep.offsets.size(); ++j) {
+      fieldNames.push_back("field_offset" + std::to_string(j + 1) + ".dpxf");
+      sep.offsets[j].save(staging.path(fieldNames.back()));
+    }
+  }
 
   std::ostringstream json;
   JsonWriter w(json);
   w.beginObject().field("input", input).field("points", file.report.points).field("duplicates_merged", merged);
-  w.field("zero_normals", rep.zeroNormals).field("device", rep.device).field("precision", rep.precision);
-  w.key("offsets").beginArray();
-  for (double d : rep.offsets) w.value(d);
-  w.endArray();
-  w.field("off_surface_side", rep.offSurfaceSide).field("sigma0", rep.sigma0).field("sigma1", rep.sigma1);
-  w.field("levels", rep.levels).field("stopped_early", rep.stoppedEarly);
-  w.key("level_reports").beginArray();
-  for (const LevelReport& l : rep.levelReports) {
-    w.beginObject().field("level", l.level).field("sigma", l.sigma).field("surface_points", l.surfacePoints);
-    w.key("offset_candidates").beginArray();
-    for (auto v : l.offsetCandidates) w.value(v);
-    w.endArray().key("offset_kept").beginArray();
-    for (auto v : l.offsetKept) w.value(v);
+  w.field("mode", separate ? "separate" : "duplex");
+  if (!separate) {
+    writeFitReport(w, rep);
+  } else {
+    w.field("device", rep.device).field("precision", rep.precision).key("offsets").beginArray();
+    for (double d : sep.offsetDeltas) w.value(d);
     w.endArray();
-    w.field("off_surface_candidates", l.offSurfaceCandidates).field("off_surface_kept", l.offSurfaceKept);
-    w.field("merged_centres", l.mergedCentres).field("centres", l.centres).field("nonzeros", l.nonZeros);
-    w.field("max_residual_before", l.maxResidualBefore);
-    w.key("cg").beginObject().field("converged", l.solve.converged).field("stop_reason", stopReasonName(l.solve.reason));
-    w.field("iterations", l.solve.iterations).field("relative_residual", l.solve.relativeResidual);
-    w.field("tolerance", l.solve.tolerance).endObject();
-    w.key("seconds").beginObject().field("constraints", l.secondsConstraints).field("residual", l.secondsResidual);
-    w.field("assembly", l.secondsAssembly).field("solve", l.secondsSolve).endObject();
-    w.endObject();
+    w.field("E0", rep.e0).key("Edelta").beginArray();
+    for (const FitReport& r : sep.offsetReports) w.value(r.e0);
+    w.endArray();
+    w.key("fits").beginArray();
+    for (std::size_t i = 0; i <= sep.offsetReports.size(); ++i) {
+      w.beginObject().field("surface", i == 0 ? std::string("zero") : "offset" + std::to_string(i));
+      w.field("delta", i == 0 ? 0.0 : sep.offsetDeltas[i - 1]);
+      w.field("fitted_points", i == 0 ? file.points.size() : sep.offsetPoints[i - 1]);
+      writeFitReport(w, i == 0 ? sep.zeroReport : sep.offsetReports[i - 1]);
+      w.endObject();
+    }
+    w.endArray();
   }
-  w.endArray();
-  w.field("E0", rep.e0).key("Edelta").beginArray();
-  for (double e : rep.eDelta) w.value(e);
-  w.endArray();
   w.key("meshes").beginArray();
   for (std::size_t i = 0; i < meshNames.size(); ++i) {
-    w.beginObject().field("file", meshNames[i]).field("iso", isos[i]).key("topology");
+    w.beginObject().field("file", meshNames[i]).field("iso", separate ? 0.0 : isos[i]);
+    w.field("field", separate ? fieldNames[i] : fieldNames[0]).key("topology");
     writeTopology(w, topo[i]);
     w.endObject();
   }
@@ -253,19 +327,24 @@ int cmdFit(Args& args) {
   }
   staging.commit();
 
-  std::cout << std::setprecision(4) << "fit " << input << ": " << file.report.points << " points, " << rep.levels
+  std::cout << std::setprecision(4) << "fit " << (separate ? "(separate) " : "") << input << ": " << file.report.points << " points, " << rep.levels
             << " levels, E0 " << rep.e0;
   for (std::size_t j = 0; j < rep.eDelta.size(); ++j) std::cout << ", E(" << rep.offsets[j] << ") " << rep.eDelta[j];
   std::cout << ", " << since(start) << " s\n";
   for (std::size_t i = 0; i < meshNames.size(); ++i) {
-    std::cout << "  " << (outDir / meshNames[i]).string() << "  iso " << isos[i] << ": " << topo[i].faces
+    std::cout << "  " << (outDir / meshNames[i]).string() << (separate && i > 0 ? "  offset " : "  iso ") << isos[i]
+              << ": " << topo[i].faces
               << " triangles, " << topo[i].components << " component(s), "
               << (topo[i].watertight() && topo[i].manifold() ? "watertight 2-manifold" : "NOT watertight/manifold")
               << "\n";
   }
-  std::cout << "  " << (outDir / "field.dpxf").string() << ", " << (outDir / "report.json").string() << "\n";
+  std::cout << " ";
+  for (const std::string& f : fieldNames) std::cout << " " << (outDir / f).string() << ",";
+  std::cout << " " << (outDir / "report.json").string() << "\n";
   bool converged = true;
-  for (const LevelReport& l : rep.levelReports) converged = converged && (l.solve.iterations == 0 || l.solve.converged);
+  for (const FitReport* r : allReports) {
+    for (const LevelReport& l : r->levelReports) converged = converged && (l.solve.iterations == 0 || l.solve.converged);
+  }
   return strict && !converged ? kNumerical : 0;
 }
 

@@ -63,6 +63,8 @@ commands:
       --cell H / --resolution R     marching grid cell size / cells along the longest side
       --format ply|obj|stl          mesh format (default ply)
       --drop-zero-normals           drop points whose normal is zero instead of keeping them at f = 0
+      --separate       baseline: fit the surface from the cloud alone and each offset surface from its
+                       own offset points alone (one field each: field.dpxf, field_offsetN.dpxf)
   mesh FIELD         extract one level set of a saved field: --iso V (default 0) -o OUT.ply|obj|stl
                      [--device SPEC] [--cell H | --resolution R]
 )";

@@ -114,4 +114,28 @@ using FitProgressCallback = std::function<bool(const FitProgress&)>;
 FitResult fit(const Device& device, const PointSet& points, const FitOptions& options = {},
               const FitProgressCallback& progress = {});
 
+/// The separate-fit baseline (the comparison of the paper's Table 1, algorithm.md §11): the surface fitted
+/// from the cloud alone and every offset surface from its own offset points alone, each a multi-level CSRBF
+/// fit of its own (off-surface points on both sides, no offsets), so each field's 0-level is its surface.
+struct SeparateFitResult {
+  ImplicitField zero;                        ///< 0-level: the surface
+  FitReport zeroReport;
+  std::vector<ImplicitField> offsets;        ///< per offset δ_j: 0-level = the offset surface
+  std::vector<FitReport> offsetReports;
+  std::vector<double> offsetDeltas;          ///< δ_j in input units
+  std::vector<std::size_t> offsetPoints;     ///< valid offset points fitted for δ_j
+  double secondsTotal = 0.0;
+};
+
+/// The offset cloud of δ (input units, > 0 inward): q = p + δν (ν the inward unit normal) for every point
+/// with a non-zero normal whose q passes the validity test of §3.1 with tolerance `eta`, with p's
+/// (outward-facing, as given unless `normalsInward`) normal. @throws InvalidArgument for δ = 0 or
+/// an empty result.
+PointSet offsetPointCloud(const PointSet& points, double delta, bool normalsInward = false, double eta = 1e-2);
+
+/// Runs the separate-fit baseline with the options of fit() (offsets as in fit(); progress events carry the
+/// message "surface" or "offset j" at the start of each fit). @throws as fit().
+SeparateFitResult fitSeparate(const Device& device, const PointSet& points, const FitOptions& options = {},
+                              const FitProgressCallback& progress = {});
+
 }  // namespace duplexfit

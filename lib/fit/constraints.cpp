@@ -15,7 +15,7 @@ namespace {
 // Candidates p_i + step·ν_i for points with a non-zero normal, kept when the nearest point of P other
 // than p_i is at least |step|(1 − η) away. Returns the kept candidates and their source indices.
 Points validCompanions(const Points& points, const Points& normals, const NeighborIndex& index, double step,
-                       double eta, std::size_t& candidates) {
+                       double eta, std::size_t& candidates, std::vector<Eigen::Index>* keptSources = nullptr) {
   std::vector<Eigen::Index> source;
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
     if (normals.row(i).squaredNorm() > 0.0) source.push_back(i);
@@ -43,13 +43,23 @@ Points validCompanions(const Points& points, const Points& normals, const Neighb
   }
   Points out(static_cast<Eigen::Index>(kept), 3);
   Eigen::Index r = 0;
+  if (keptSources != nullptr) keptSources->clear();
   for (std::size_t k = 0; k < source.size(); ++k) {
-    if (keep[k] != 0) out.row(r++) = q.row(static_cast<Eigen::Index>(k));
+    if (keep[k] == 0) continue;
+    out.row(r++) = q.row(static_cast<Eigen::Index>(k));
+    if (keptSources != nullptr) keptSources->push_back(source[k]);
   }
   return out;
 }
 
 }  // namespace
+
+Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta,
+                         std::vector<Eigen::Index>& sources) {
+  const NeighborIndex index(points);
+  std::size_t candidates = 0;
+  return validCompanions(points, normals, index, step, eta, candidates, &sources);
+}
 
 LevelConstraints buildConstraints(const Points& points, const Points& normals, const ConstraintOptions& options) {
   LevelConstraints out;

@@ -35,6 +35,11 @@ struct LevelConstraints {
   std::vector<Eigen::Index> surfaceNotCentres;
 };
 
+/// The offset points p_i + step·ν_i of the points with a non-zero normal that pass the validity test (§3.1)
+/// against all of `points`; `sources` receives the index of each kept point's p_i.
+Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta,
+                         std::vector<Eigen::Index>& sources);
+
 /// Builds the level's centres from its points P^k and inward normals ν (unit or zero).
 LevelConstraints buildConstraints(const Points& points, const Points& normals, const ConstraintOptions& options);
 

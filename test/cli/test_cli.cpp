@@ -12,6 +12,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "duplexfit/field.hpp"
 #include "duplexfit/io.hpp"
 #include "shapes.hpp"
 
@@ -114,6 +115,31 @@ TEST_SUITE("cli") {
     const Run rel = cli("fit " + input.string() + " --offset 0.1,-0.05 --offset-rel -o " + (dir / "rel").string() + " --quiet --format stl");
     CHECK(rel.status == 0);
     CHECK(fs::exists(dir / "rel" / "offset2.stl"));
+  }
+
+  TEST_CASE("cli: fit --separate writes one field per surface and a report in separate mode") {
+    const fs::path dir = scratch("separate");
+    const fs::path input = sphereCloud(dir);
+    const fs::path out = dir / "out";
+    const Run r = cli("fit " + input.string() + " --offset 0.1 --separate -o " + out.string() + " --quiet --strict");
+    INFO("stderr: " << r.err);
+    REQUIRE(r.status == 0);
+    for (const char* f : {"zero.ply", "offset1.ply", "field.dpxf", "field_offset1.dpxf", "report.json"}) {
+      CHECK(fs::exists(out / f));
+    }
+    CHECK(filesIn(out) == 5);
+    const std::string report = readBytes(out / "report.json");
+    CHECK(report.find("\"mode\": \"separate\"") != std::string::npos);
+    CHECK(report.find("\"fits\"") != std::string::npos);
+    // The two fields are independent: each has its own 0-level (surface radius 0.5, offset radius 0.4).
+    const ImplicitField zero = ImplicitField::load((out / "field.dpxf").string());
+    const ImplicitField off = ImplicitField::load((out / "field_offset1.dpxf").string());
+    CHECK(std::abs(zero.value(Eigen::Vector3d(0.5, 0, 0))) < 2e-3);
+    CHECK(std::abs(off.value(Eigen::Vector3d(0.4, 0, 0))) < 2e-3);
+    CHECK(std::abs(off.value(Eigen::Vector3d(0.5, 0, 0))) > 0.02);
+    const MeshTopology t = analyzeTopology(readMesh((out / "offset1.ply").string()));
+    CHECK(t.components == 1);
+    CHECK(t.watertight());
   }
 
   TEST_CASE("cli: bad clouds give a clear error naming the file and element, and no output") {

@@ -84,6 +84,37 @@ TEST_SUITE("fit") {
     CHECK(sphereError(m.field, d, 0.5, 0.0) <= 5e-4);
   }
 
+  TEST_CASE("fit --separate: one independent field per surface, each 0-level on its own sphere") {
+    DUPLEXFIT_OPENCL_DEVICE(d);
+    const PointSet cloud = sphereCloud(3000, 0.5);
+    FitOptions options;
+    options.offsets = {0.1, -0.05};
+    const SeparateFitResult r = fitSeparate(d, cloud, options);
+    REQUIRE(r.offsets.size() == 2);
+    REQUIRE(r.offsetReports.size() == 2);
+    CHECK(r.offsetDeltas == std::vector<double>{0.1, -0.05});
+    CHECK(r.offsetPoints == std::vector<std::size_t>{3000, 3000});  // exact normals: every offset point valid
+    // Every field is a plain surface fit: no offsets inside it, off-surface points on both sides.
+    for (const FitReport* rep : {&r.zeroReport, &r.offsetReports[0], &r.offsetReports[1]}) {
+      CHECK(rep->offsets.empty());
+      CHECK(rep->offSurfaceSide == "both sides (no offsets)");
+      CHECK(rep->e0 <= 1e-4);
+    }
+    CHECK(r.zero.offsets().empty());
+    CHECK(sphereError(r.zero, d, 0.5, 0.0) <= 1e-3);
+    CHECK(sphereError(r.offsets[0], d, 0.4, 0.0) <= 1e-3);   // inward δ = 0.1: the sphere of radius 0.4
+    CHECK(sphereError(r.offsets[1], d, 0.55, 0.0) <= 1e-3);  // outward δ = 0.05: radius 0.55
+    // Independent: the offset field does not vanish on the input surface, the zero field not on the offset.
+    CHECK(r.offsets[0].evaluate(d, cloud.positions()).values.cwiseAbs().minCoeff() > 0.01);
+    CHECK(r.zero.evaluate(d, testing::fibonacciSphere(300, 0.4)).values.cwiseAbs().minCoeff() > 0.01);
+    // The offset clouds sit at distance |δ| along the normals.
+    const PointSet in = offsetPointCloud(cloud, 0.1);
+    CHECK(in.positions().rowwise().norm().maxCoeff() == doctest::Approx(0.4).epsilon(1e-9));
+    CHECK(in.positions().rowwise().norm().minCoeff() == doctest::Approx(0.4).epsilon(1e-9));
+    CHECK_THROWS_AS(offsetPointCloud(cloud, 0.0), InvalidArgument);
+    CHECK_THROWS_AS(offsetPointCloud(cloud, 0.9), InvalidArgument);  // deeper than the sphere: nothing valid
+  }
+
   TEST_CASE("fit: relative offsets are fractions of the largest side") {
     const PointSet cloud = sphereCloud(1000, 2.0);  // largest side 4
     FitOptions o;
