@@ -1,9 +1,249 @@
-// Placeholder: this command is being written (replaced by its module's implementation).
+// `duplexfit section`: pictures of f on axis-aligned planes (blue outside, white at 0, red inside, with
+// the 0-level and offset contours). Every image is written under a temporary name first and renamed
+// into place only when all of them are done, so a failed run leaves no partial output.
+#include <cctype>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <unistd.h>
+
 #include "commands.hpp"
+#include "duplexfit/error.hpp"
+#include "duplexfit/field.hpp"
+#include "duplexfit/image.hpp"
+#include "duplexfit/io.hpp"
+#include "duplexfit/section.hpp"
+#include "json.hpp"
 
 namespace duplexfit::cli {
 
-const std::vector<std::string> kSectionValued = {};
-const char* const kSectionHelp = "";
-int cmdSection(Args&) { throw UsageError("section: not available yet"); }
+const std::vector<std::string> kSectionValued = {"plane", "size", "range", "gamma", "points", "band",
+                                                 "device", "precision", "rect", "output"};
+
+const char* const kSectionHelp =
+    R"(  section FIELD      picture of f on an axis-aligned plane: blue outside (f < 0), white at 0, red inside,
+                     with the 0-level (black) and offset level (green, purple, ...) contour lines
+      -o OUT.png       output; without --plane three planes through the box centre: OUT_x.png,
+                       OUT_y.png, OUT_z.png (-o FOLDER: section_x.png, ... inside it)
+      --plane x=C|y=C|z=C  one plane, in input units
+      --size N         pixels along the longer side (16..16384, default 1024)
+      --range R        colour scale ±R (default: the 99th percentile of |f| in the picture)
+      --gamma G        colour intensity ∝ (|f|/R)^G (default 0.5; 1: linear)
+      --rect U0,V0,U1,V1   the part of the plane shown, in (right, up) coordinates: (y, z) for x=C,
+                       (x, z) for y=C, (x, y) for z=C (default: the field's box plus 5%)
+      --points CLOUD   draw the cloud's points near the plane as yellow dots
+      --band W         only points within W of the plane (default 1% of the box's longest side)
+      --device SPEC, --precision float|double, --json (summary on stdout), --quiet
+)";
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<double> parseNumbers(const std::string& text, const char* option) {
+  std::vector<double> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    char* end = nullptr;
+    const double v = std::strtod(item.c_str(), &end);
+    if (item.empty() || end == item.c_str() || *end != '\0' || !std::isfinite(v)) {
+      throw UsageError(std::string("option --") + option + ": '" + item + "' is not a number");
+    }
+    out.push_back(v);
+  }
+  return out;
+}
+
+bool endsWithPng(const std::string& s) {
+  if (s.size() < 4) return false;
+  std::string ext = s.substr(s.size() - 4);
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".png";
+}
+
+/// Images written under temporary names; commit() renames them all into place. Until then (and when a
+/// rename fails) the destructor removes the temporary files and whatever was already moved.
+class PendingFiles {
+ public:
+  PendingFiles() = default;
+  PendingFiles(const PendingFiles&) = delete;
+  PendingFiles& operator=(const PendingFiles&) = delete;
+  ~PendingFiles() {
+    if (committed_) return;
+    std::error_code ec;
+    for (const auto& [temp, final] : files_) fs::remove(temp, ec);
+    for (const std::string& moved : moved_) fs::remove(moved, ec);
+  }
+  /// The temporary name for `path` (same folder, so that the rename stays on one file system).
+  std::string add(const std::string& path) {
+    files_.emplace_back(path + ".tmp-section-" + std::to_string(::getpid()), path);
+    return files_.back().first;
+  }
+  void commit() {
+    for (const auto& [temp, final] : files_) {
+      std::error_code ec;
+      fs::rename(temp, final, ec);
+      if (ec) throw IoError(final + ": cannot move the image into place (" + ec.message() + ")");
+      moved_.push_back(final);
+    }
+    committed_ = true;
+  }
+
+ private:
+  std::vector<std::pair<std::string, std::string>> files_;
+  std::vector<std::string> moved_;
+  bool committed_ = false;
+};
+
+}  // namespace
+
+int cmdSection(Args& args) {
+  const auto start = std::chrono::steady_clock::now();
+  const bool quiet = args.flag("quiet");
+  const bool json = args.flag("json");
+  auto log = [quiet](const std::string& s) {
+    if (!quiet) std::cerr << s << std::endl;
+  };
+  const std::string planeText = args.str("plane", "");
+  SectionOptions options;
+  options.size = static_cast<int>(args.integer("size", options.size));
+  options.range = args.num("range", 0.0);
+  if (options.range < 0.0) throw UsageError("option --range must be positive");
+  options.gamma = args.num("gamma", options.gamma);
+  if (!(options.gamma > 0.0 && options.gamma <= 10.0)) throw UsageError("option --gamma must be in (0, 10]");
+  const std::string pointsPath = args.str("points", "");
+  options.band = args.num("band", 0.0);
+  if (options.band < 0.0) throw UsageError("option --band must be positive");
+  if (options.band > 0.0 && pointsPath.empty()) throw UsageError("option --band needs --points CLOUD");
+  options.precision = parsePrecision(args.str("precision", "float").c_str());
+  const std::string rectText = args.str("rect", "");
+  if (!rectText.empty()) {
+    const std::vector<double> r = parseNumbers(rectText, "rect");
+    if (r.size() != 4 || !(r[2] > r[0]) || !(r[3] > r[1])) {
+      throw UsageError("option --rect needs U0,V0,U1,V1 with U1 > U0 and V1 > V0");
+    }
+    options.rectangle = Eigen::AlignedBox2d(Eigen::Vector2d(r[0], r[1]), Eigen::Vector2d(r[2], r[3]));
+  }
+  const std::string output = args.str("output", "");
+  const std::string deviceSpec = args.str("device", "");
+  args.finish(1);
+  if (args.positional().empty()) throw UsageError("section needs a field file: duplexfit section FIELD -o OUT.png");
+  if (output.empty()) throw UsageError("section needs an output: -o OUT.png (or -o FOLDER)");
+  if (options.size < 16 || options.size > 16384) throw UsageError("option --size must be between 16 and 16384");
+  const std::string fieldPath = args.positional()[0];
+
+  std::vector<SectionPlane> planes;
+  if (!planeText.empty()) planes.push_back(SectionPlane::parse(planeText));
+
+  const ImplicitField field = ImplicitField::load(fieldPath);
+  if (planes.empty()) {  // through the box centre, rounded to 1e-4 of the box's size for readable names
+    const Eigen::Vector3d c = field.bounds().center();
+    const double extent = field.bounds().sizes().maxCoeff();
+    const double e = extent > 0.0 ? std::floor(std::log10(extent)) - 4.0 : 0.0;
+    const double scale = std::pow(10.0, std::fabs(e));  // exact: |e| is small
+    for (int axis = 0; axis < 3; ++axis) {
+      // divide by the power of ten rather than multiply by its inverse: the nearest double to k·10^e
+      double v = extent <= 0.0 ? c[axis] : e < 0.0 ? std::round(c[axis] * scale) / scale
+                                                   : std::round(c[axis] / scale) * scale;
+      if (!(v >= field.bounds().min()[axis] && v <= field.bounds().max()[axis])) v = c[axis];  // a flat box
+      planes.push_back(SectionPlane{axis, v == 0.0 ? 0.0 : v});  // no "-0"
+    }
+  }
+  if (!pointsPath.empty()) {
+    PointReadOptions read;
+    read.requireNormals = false;
+    options.points = readPointCloud(pointsPath, read).positions();
+  }
+
+  for (const SectionPlane& p : planes) validateSection(field, p, options);  // before the device work
+
+  // Output names.
+  const bool folder = fs::is_directory(output) || output.back() == '/';
+  std::vector<std::string> files;
+  for (const SectionPlane& p : planes) {
+    const std::string axis = sectionAxisName(p.axis);
+    if (folder) {
+      files.push_back((fs::path(output) / ("section_" + axis + ".png")).string());
+    } else if (planeText.empty()) {
+      files.push_back((endsWithPng(output) ? output.substr(0, output.size() - 4) : output) + "_" + axis + ".png");
+    } else {
+      files.push_back(output);
+    }
+  }
+
+  const Device device = deviceSpec.empty() ? Device::openDefault() : Device::open(deviceSpec);
+  log("device: " + device.description());
+  log("field " + fieldPath + ": " + std::to_string(field.levels().size()) + " levels, " +
+      std::to_string(field.centreCount()) + " centres, " + std::to_string(field.offsets().size()) + " offset(s)");
+  auto t = std::chrono::steady_clock::now();
+  const FieldEvaluator evaluator(device, field, options.precision);
+  const double setupSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+
+  PendingFiles pending;
+  std::vector<SectionResult> results;
+  for (std::size_t i = 0; i < planes.size(); ++i) {
+    SectionResult r = renderSection(evaluator, field, planes[i], options);
+    t = std::chrono::steady_clock::now();
+    try {
+      writePng(pending.add(files[i]), r.image);
+    } catch (const IoError& e) {
+      throw IoError(files[i] + ": cannot write the image (" + e.what() + ")");
+    }
+    const double writeSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+    std::ostringstream line;
+    line << "section " << planes[i].toString() << ": " << r.image.width << "x" << r.image.height << " px, "
+         << r.seconds << " s (+ " << writeSeconds << " s PNG)";
+    log(line.str());
+    r.image.pixels = std::vector<std::uint8_t>();  // keep only the summary
+    r.values = std::vector<float>();
+    results.push_back(std::move(r));
+  }
+  pending.commit();
+  const double totalSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  if (json) {
+    JsonWriter w(std::cout);
+    w.beginObject().field("field", fieldPath).field("device", device.info().spec);
+    w.field("device_name", device.info().name).field("precision", precisionName(options.precision));
+    w.key("files").beginArray();
+    for (const std::string& f : files) w.value(f);
+    w.endArray();
+    w.key("levels").beginArray();
+    for (double l : results.front().levels) w.value(l);
+    w.endArray();
+    w.key("sections").beginArray();
+    for (std::size_t i = 0; i < results.size(); ++i) {
+      const SectionResult& r = results[i];
+      w.beginObject().field("file", files[i]).field("plane", r.plane.toString());
+      w.field("width", r.image.width).field("height", r.image.height);
+      w.field("pixel_size", r.pixelSize);
+      w.key("axes").beginArray().value(sectionAxisName(r.plane.rightAxis())).value(sectionAxisName(r.plane.upAxis())).endArray();
+      w.key("rectangle").beginArray().value(r.rectangle.min().x()).value(r.rectangle.min().y());
+      w.value(r.rectangle.max().x()).value(r.rectangle.max().y()).endArray();
+      w.field("value_min", r.minValue).field("value_max", r.maxValue).field("range", r.range);
+      if (!pointsPath.empty()) w.field("band", r.band).field("points_drawn", r.pointsDrawn);
+      w.field("seconds", r.seconds).endObject();
+    }
+    w.endArray();
+    w.field("setup_seconds", setupSeconds).field("total_seconds", totalSeconds).endObject();
+    std::cout << "\n";
+  } else {
+    for (std::size_t i = 0; i < results.size(); ++i) {
+      const SectionResult& r = results[i];
+      std::cout << files[i] << ": " << r.plane.toString() << ", pixel " << r.pixelSize << ", f in [" << r.minValue
+                << ", " << r.maxValue << "], colour scale ±" << r.range;
+      if (!pointsPath.empty()) std::cout << ", " << r.pointsDrawn << " points within " << r.band;
+      std::cout << "\n";
+    }
+  }
+  return 0;
+}
+
 }  // namespace duplexfit::cli
