@@ -1,0 +1,125 @@
+// Point-cloud pre-processing before a fit: the bilateral point filter of algorithm.md §9 (denoising),
+// and normal estimation with consistent outward orientation for clouds that carry no normals.
+// Neighbour queries run on the host (FLANN); the per-point sums run as OpenCL kernels on the device, or as
+// the same loops in C++ on the reference device.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+#include "duplexfit/device.hpp"
+#include "duplexfit/point_set.hpp"
+#include "duplexfit/types.hpp"
+
+namespace duplexfit {
+
+/// Options of bilateralFilter. Every length is in input units; 0 picks the rule of algorithm.md §9.
+struct BilateralOptions {
+  /// σ_ψ, width of the spatial weight ψ(r) = exp(−r²/(2σ_ψ²)); 0: 4·R_ave.
+  double sigmaSpatial = 0.0;
+  /// σ_ζ, width of the range weight on the normal offset ‖K_q(p) − p‖; 0: 4·R_ave.
+  double sigmaRange = 0.0;
+  /// Neighbourhood radius (points q with ‖q − p‖ < radius contribute); 0: 2·σ_ψ.
+  double radius = 0.0;
+  /// σ of the area weights s_q = σ²/N(q) (N(q): points within σ of q, q included); 0: σ_M, the support
+  /// of the finest level the fit would use (§4 with α = 0.75).
+  double areaSigma = 0.0;
+  /// Passes; each starts from the previous pass's output (the paper uses one). Parameters are chosen once
+  /// from the input; neighbourhoods and area weights are recomputed every pass.
+  int iterations = 1;
+  /// ζ(r) = exp(−r²/(2σ_ζ²)) instead of the printed exp(−r²/σ_ζ²) (§12.14).
+  bool symmetricRange = false;
+  /// Arithmetic of the per-point sums (positions are centred first, displacements added in double).
+  Precision precision = Precision::Float;
+  /// Keep the input normals (the paper, default) or re-estimate them by PCA on the filtered points
+  /// (estimateNormals' PCA with `normalK` neighbours), each signed to agree with its input normal.
+  bool reestimateNormals = false;
+  int normalK = 15;
+};
+
+/// What bilateralFilter did: the parameters actually used and the effect.
+struct BilateralReport {
+  std::string device;               ///< spec of the device that ran the sums
+  Precision precision = Precision::Float;
+  std::size_t points = 0;
+  double sigmaSpatial = 0.0;        ///< σ_ψ used
+  double sigmaRange = 0.0;          ///< σ_ζ used
+  double radius = 0.0;              ///< neighbourhood radius used
+  double areaSigma = 0.0;           ///< σ of s_q used
+  double rAve = 0.0;                ///< R_ave = mean √s_q over the input
+  int levels = 0;                   ///< M behind the default σ_M (0 when areaSigma was given)
+  int iterations = 0;
+  bool symmetricRange = false;
+  bool normalsReestimated = false;
+  double meanNeighbors = 0.0;       ///< mean neighbourhood size of the last pass (the point included)
+  std::size_t isolated = 0;         ///< points of the last pass with no neighbour but themselves
+  std::size_t moved = 0;            ///< points that moved by more than 1e-9·L in total
+  double maxDisplacement = 0.0;     ///< input units, over all passes (‖output − input‖)
+  double meanDisplacement = 0.0;
+  double neighborSeconds = 0.0;     ///< FLANN builds and radius queries (host)
+  double filterSeconds = 0.0;       ///< weighted sums, including transfers
+  double seconds = 0.0;             ///< everything
+};
+
+/// Filters noisy positions with the bilateral point filter (algorithm.md §9): each point moves to the
+/// weighted mean of its projections K_q(p) = p − ((p − q)·n_q) n_q onto its neighbours' tangent planes,
+/// with weights s_q·ψ(‖q − p‖)·ζ(‖K_q(p) − p‖). All points of a pass move at once. Normals are kept
+/// unless options.reestimateNormals. Points whose normal is zero contribute K_q(p) = p.
+/// @throws InvalidArgument on options out of range, fewer than 2 points, all points coincident, or a
+/// precision the device lacks (DeviceError); DeviceError on OpenCL failures.
+PointSet bilateralFilter(const PointSet& points, const BilateralOptions& options, const Device& device,
+                         BilateralReport* report = nullptr);
+
+/// Options of estimateNormals.
+struct NormalOptions {
+  /// Neighbours of each point in its PCA (the point itself not counted; k + 1 points in all). At least 3.
+  int k = 15;
+  /// Neighbours per point of the orientation graph (symmetrised kNN); 0: k.
+  int graphK = 0;
+  /// Arithmetic of the covariance sums on the device (eigenvectors are always taken in double).
+  Precision precision = Precision::Float;
+  /// When true (default) a cloud or component whose outward side cannot be decided (flat, or no enclosed
+  /// volume) is an InvalidArgument; when false it keeps the propagated orientation (seed normal up,
+  /// +z) and is counted in NormalReport::ambiguousComponents.
+  bool requireOutward = true;
+};
+
+/// What estimateNormals did.
+struct NormalReport {
+  std::string device;
+  Precision precision = Precision::Float;
+  std::size_t points = 0;
+  std::size_t duplicates = 0;        ///< points equal to an earlier point (they share its normal)
+  int k = 0;
+  int graphK = 0;
+  std::size_t components = 0;        ///< connected components of the orientation graph
+  std::size_t ambiguousComponents = 0;  ///< components whose outward side could not be decided
+  std::size_t flippedComponents = 0; ///< components flipped by the outward (enclosed-volume) test
+  std::size_t nestedComponents = 0;  ///< components inside an odd number of others (cavity walls), whose
+                                     ///< normals therefore face inward into the cavity
+  std::size_t flipped = 0;           ///< normals whose final sign is opposite to their raw PCA sign
+  std::size_t degenerate = 0;        ///< neighbourhoods with no plane (collinear): the normal is zero
+  std::size_t nonPlanar = 0;         ///< surface variation λ0/(λ0+λ1+λ2) > 0.1 (corners, noise)
+  double minVolumeRatio = 0.0;       ///< smallest |enclosed-volume ratio| over decided components (1 = sphere)
+  double neighborSeconds = 0.0;      ///< FLANN build and kNN query
+  double pcaSeconds = 0.0;           ///< covariance sums (device) and eigenvectors (host)
+  double orientSeconds = 0.0;        ///< graph, spanning-tree propagation and outward test
+  double seconds = 0.0;
+};
+
+/// Estimates unit normals of an unoriented cloud: PCA of each point's k nearest neighbours, then a
+/// consistent orientation by propagation along a minimum spanning tree of the symmetrised kNN graph
+/// (Hoppe et al. 1992; edge cost 1 − |n_i·n_j| plus a penalty for edges that leave the tangent planes),
+/// seeded at the highest point of each connected component with its normal up, and finally the sign of
+/// each component chosen so that its normals point outward: the sign of the enclosed volume
+/// (1/3)∮(x − c)·n dA estimated as Σ a_i (p_i − c)·n_i (divergence theorem; a_i from the kNN radius) is
+/// made positive. A component nested inside an odd number of others (the inner wall of a hollow shell, by
+/// the generalised winding number of the others) is then flipped so that it faces into its cavity.
+/// Output rows match the input rows; exact duplicates share the first occurrence's normal.
+/// @throws InvalidArgument naming the point for a NaN/Inf coordinate; when k < 3, fewer than k + 1
+/// distinct points, all points on a line, or (with requireOutward) all points on a plane or a component
+/// without an outward side; DeviceError on OpenCL failures or a precision the device lacks.
+PointSet estimateNormals(const Points& points, const NormalOptions& options, const Device& device,
+                         NormalReport* report = nullptr);
+
+}  // namespace duplexfit
