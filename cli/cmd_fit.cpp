@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <optional>
 #include <sstream>
 
 #include <sys/resource.h>
@@ -14,6 +15,7 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/fit.hpp"
 #include "duplexfit/io.hpp"
+#include "duplexfit/preprocess.hpp"
 #include "duplexfit/surfaces.hpp"
 #include "json.hpp"
 
@@ -21,7 +23,8 @@ namespace duplexfit::cli {
 
 const std::vector<std::string> kFitValued = {"offset", "output", "device", "precision", "validity-tol", "levels",
                                              "smoothing", "fit-tol", "tol", "max-iterations", "cell", "resolution",
-                                             "format", "alpha"};
+                                             "format", "alpha", "normals-k", "denoise-sigma-s",
+                                             "denoise-sigma-r", "denoise-radius", "denoise-iterations"};
 const std::vector<std::string> kMeshValued = {"iso", "output", "device", "precision", "cell", "resolution"};
 
 namespace {
@@ -154,7 +157,9 @@ int cmdFit(Args& args) {
   options.validityTolerance = args.num("validity-tol", options.validityTolerance);
   options.levels = static_cast<int>(args.integer("levels", 0));
   options.alpha = args.num("alpha", options.alpha);
-  options.smoothing = args.num("smoothing", 0.0);
+  const bool denoise = args.flag("denoise");
+  // A denoised cloud is fitted in approximation mode, s = 0.2 as the paper's Fig. 9, unless told otherwise.
+  options.smoothing = args.num("smoothing", denoise ? 0.2 : 0.0);
   options.fitTolerance = args.num("fit-tol", 0.0);
   options.precision = parsePrecision(args.str("precision", "float").c_str());
   options.solver.relativeTolerance = args.num("tol", 0.0);
@@ -167,6 +172,18 @@ int cmdFit(Args& args) {
   const std::string ext = meshExtension(args);
   const bool strict = args.flag("strict");
   const bool separate = args.flag("separate");
+  // Pre-processing (issue: noisy and unoriented scans): normals first (the filter needs them), then the
+  // bilateral filter.
+  const bool estimate = args.flag("estimate-normals");
+  NormalOptions normalOptions;
+  normalOptions.k = static_cast<int>(args.integer("normals-k", normalOptions.k));
+  normalOptions.precision = options.precision;
+  BilateralOptions filter;
+  filter.sigmaSpatial = args.num("denoise-sigma-s", 0.0);
+  filter.sigmaRange = args.num("denoise-sigma-r", 0.0);
+  filter.radius = args.num("denoise-radius", 0.0);
+  filter.iterations = static_cast<int>(args.integer("denoise-iterations", 1));
+  filter.precision = options.precision;
   const fs::path outDir = args.str("output", ".");
   const Device device = openDevice(args, log);
   args.finish(1);
@@ -176,12 +193,37 @@ int cmdFit(Args& args) {
   Staging staging(outDir);  // fails early, before any work, if the folder is unusable
 
   auto t = Clock::now();
-  PointCloudFile file = readPointCloudWithReport(input);
+  PointReadOptions readOptions;
+  readOptions.requireNormals = !estimate;
+  PointCloudFile file = readPointCloudWithReport(input, readOptions);
+  const double readSeconds = since(t);
+  std::optional<NormalReport> normalReport;
+  if (estimate) {
+    NormalReport nr;
+    log(std::string(file.report.normals ? "re-estimating" : "estimating") + " normals (k = " +
+        std::to_string(normalOptions.k) + ") ...");
+    try {
+      file.points = estimateNormals(file.points.positions(), normalOptions, device, &nr);
+    } catch (const InvalidArgument& e) {
+      throw InvalidArgument(input + ": " + e.what());
+    }
+    log("normals: " + std::to_string(nr.components) + " component(s), " + std::to_string(nr.flippedComponents) +
+        " flipped outward, " + std::to_string(nr.seconds) + " s");
+    normalReport = nr;
+  }
   const std::size_t merged = file.points.mergeDuplicates();
+  std::optional<BilateralReport> filterReport;
+  if (denoise) {
+    BilateralReport br;
+    log("bilateral filter ...");
+    file.points = bilateralFilter(file.points, filter, device, &br);
+    log("bilateral filter: sigma_s " + std::to_string(br.sigmaSpatial) + ", sigma_r " + std::to_string(br.sigmaRange) +
+        ", mean displacement " + std::to_string(br.meanDisplacement) + ", " + std::to_string(br.seconds) + " s");
+    filterReport = br;
+  }
   checkFittable(file.points, input);  // errors name the file
   log("read " + std::to_string(file.report.points) + " points from " + input + " (" +
-      std::to_string(merged) + " duplicates merged) in " + std::to_string(since(t)) + " s");
-  const double readSeconds = since(t);
+      std::to_string(merged) + " duplicates merged) in " + std::to_string(readSeconds) + " s");
 
   const FitProgressCallback progress = [&](const FitProgress& p) {
     if (quiet) return true;
@@ -280,6 +322,31 @@ int cmdFit(Args& args) {
   JsonWriter w(json);
   w.beginObject().field("input", input).field("points", file.report.points).field("duplicates_merged", merged);
   w.field("mode", separate ? "separate" : "duplex");
+  w.key("preprocessing").beginObject();
+  w.key("normals");
+  if (normalReport) {
+    const NormalReport& n = *normalReport;
+    w.beginObject().field("method", "PCA + Riemannian MST propagation + enclosed-volume sign");
+    w.field("k", n.k).field("graph_k", n.graphK).field("input_had_normals", file.report.normals);
+    w.field("components", n.components).field("flipped_components", n.flippedComponents);
+    w.field("ambiguous_components", n.ambiguousComponents).field("nested_components", n.nestedComponents);
+    w.field("degenerate", n.degenerate).field("non_planar", n.nonPlanar).field("seconds", n.seconds).endObject();
+  } else {
+    w.null();
+  }
+  w.key("denoise");
+  if (filterReport) {
+    const BilateralReport& b = *filterReport;
+    w.beginObject().field("method", "bilateral point filter (algorithm.md section 9)");
+    w.field("sigma_spatial", b.sigmaSpatial).field("sigma_range", b.sigmaRange).field("radius", b.radius);
+    w.field("area_sigma", b.areaSigma).field("iterations", b.iterations).field("symmetric_range", b.symmetricRange);
+    w.field("mean_neighbors", b.meanNeighbors).field("moved", b.moved);
+    w.field("max_displacement", b.maxDisplacement).field("mean_displacement", b.meanDisplacement);
+    w.field("seconds", b.seconds).endObject();
+  } else {
+    w.null();
+  }
+  w.endObject();
   if (!separate) {
     writeFitReport(w, rep);
   } else {

@@ -30,6 +30,11 @@ class JsonWriter {
     return *this;
   }
   JsonWriter& value(const char* s) { return value(std::string_view(s)); }
+  JsonWriter& null() {
+    separator();
+    out_ << "null";
+    return *this;
+  }
   JsonWriter& value(bool b) {
     separator();
     out_ << (b ? "true" : "false");

@@ -63,6 +63,11 @@ commands:
       --cell H / --resolution R     marching grid cell size / cells along the longest side
       --format ply|obj|stl          mesh format (default ply)
       --drop-zero-normals           drop points whose normal is zero instead of keeping them at f = 0
+      --estimate-normals  the cloud has no (trusted) normals: estimate them by PCA over --normals-k K
+                       neighbours (default 15) and orient them outward (as `duplexfit normals`)
+      --denoise        bilateral point filter before fitting (as `duplexfit denoise`); override its
+                       rules with --denoise-sigma-s, --denoise-sigma-r, --denoise-radius (input units),
+                       --denoise-iterations N; the fit then defaults to --smoothing 0.2 (paper, Fig. 9)
       --separate       baseline: fit the surface from the cloud alone and each offset surface from its
                        own offset points alone (one field each: field.dpxf, field_offsetN.dpxf)
   mesh FIELD         extract one level set of a saved field: --iso V (default 0) -o OUT.ply|obj|stl

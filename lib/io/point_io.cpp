@@ -17,8 +17,8 @@ namespace duplexfit {
 namespace {
 
 const char* const kNormalsHelp =
-    "duplexfit needs oriented normals: estimate and orient normals first (e.g. CloudCompare or "
-    "MeshLab 'Compute normals for point sets')";
+    "duplexfit needs oriented normals: run 'duplexfit normals IN -o OUT' or 'duplexfit fit --estimate-normals' "
+    "to estimate and orient them";
 
 /// Growing row-major storage for positions and normals before the PointSet is built.
 struct PointBuffer {
