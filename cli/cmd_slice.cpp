@@ -1,9 +1,285 @@
-// Placeholder: this command is being written (replaced by its module's implementation).
+// `duplexfit slice`: a saved field in, the layers of a 3D print out: slices.cli (Common Layer Interface,
+// ASCII), slices.svg, slices.json and optional PNG masks. Outputs are staged in a temporary folder inside
+// the output folder and moved into place only when everything succeeded.
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <limits>
+#include <sstream>
+
+#include <unistd.h>
+
 #include "commands.hpp"
+#include "duplexfit/atomic_file.hpp"
+#include "duplexfit/error.hpp"
+#include "duplexfit/field.hpp"
+#include "duplexfit/image.hpp"
+#include "duplexfit/slice.hpp"
+#include "json.hpp"
 
 namespace duplexfit::cli {
 
-const std::vector<std::string> kSliceValued = {};
-const char* const kSliceHelp = "";
-int cmdSlice(Args&) { throw UsageError("slice: not available yet"); }
+const std::vector<std::string> kSliceValued = {"cusp",  "min-layer", "max-layer", "grid",      "mode",      "axis",
+                                               "layer", "png-xy",    "device",    "precision", "units",     "output",
+                                               "offset-index", "refine-steps", "cusp-rule"};
+
+const char* const kSliceHelp = R"(  slice FIELD        cut a saved field into print layers: contours of {f >= 0} (or of the shell between
+                     the surface and its offset) as closed, oriented, nested loops; adaptive layer
+                     thickness from the cusp height (algorithm.md §10) or uniform layers
+      --cusp T         cusp height tau (adaptive slicing; required unless --layer)
+      --min-layer A    thinnest layer (default tau/4)     --max-layer B   thickest layer (default 5 tau)
+      --layer H        uniform layers of thickness H instead of adaptive ones
+      --grid G         plane sampling step (default: largest side of the box / 200)
+      --mode zero|shell  the solid (default) or the shell between f = 0 and f = delta
+      --offset-index K which of the field's offsets bounds the shell (default 0, the first)
+      --cusp-rule geometric|paper  convex/concave by the centre of curvature (default; keeps every
+                       cusp within tau) or by the sign of the curvature alone (the paper's counts)
+      --axis x|y|z     build direction (default z); plane axes (y,z), (z,x), (x,y)
+      -o DIR           output folder: slices.cli, slices.svg, slices.json (default: current folder)
+      --units U        millimetres per CLI unit (default 1: field units are mm)
+      --svg-per-layer  svg/layer_00001.svg, ... instead of one slices.svg
+      --png-xy PX      also masks/layer_00001.png, ...: white inside, pixel size PX
+      --device SPEC, --precision float|double, --refine-steps N, --quiet, --json (summary on stdout)
+)";
+
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+/// A folder inside the output folder that receives every output first; commit() moves each entry into
+/// the output folder (replacing an older one), the destructor removes whatever is left.
+class SliceStaging {
+ public:
+  explicit SliceStaging(const fs::path& outDir) : outDir_(outDir) {
+    std::error_code ec;
+    fs::create_directories(outDir_, ec);
+    if (ec || !fs::is_directory(outDir_)) {
+      throw IoError(outDir_.string() + ": cannot create the output folder (" + ec.message() + ")");
+    }
+    dir_ = outDir_ / (".duplexfit-slice-tmp-" + std::to_string(getpid()));
+    fs::remove_all(dir_, ec);
+    fs::create_directory(dir_, ec);
+    if (ec) throw IoError(outDir_.string() + ": the output folder is not writable (" + ec.message() + ")");
+  }
+  ~SliceStaging() {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+  SliceStaging(const SliceStaging&) = delete;
+  SliceStaging& operator=(const SliceStaging&) = delete;
+  /// A file (or folder, created) staged under `name`.
+  std::string path(const std::string& name, bool folder = false) {
+    names_.push_back(name);
+    if (folder) {
+      std::error_code ec;
+      fs::create_directory(dir_ / name, ec);
+      if (ec) throw IoError((dir_ / name).string() + ": cannot create (" + ec.message() + ")");
+    }
+    return (dir_ / name).string();
+  }
+  void commit() {
+    for (const std::string& n : names_) {
+      std::error_code ec;
+      if (fs::is_directory(dir_ / n)) fs::remove_all(outDir_ / n, ec);
+      fs::rename(dir_ / n, outDir_ / n, ec);
+      if (ec) throw IoError((outDir_ / n).string() + ": cannot move the output into place (" + ec.message() + ")");
+    }
+  }
+
+ private:
+  fs::path outDir_, dir_;
+  std::vector<std::string> names_;
+};
+
+std::string layerName(std::size_t i, const char* ext) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "layer_%05zu.%s", i + 1, ext);
+  return buf;
+}
+
+}  // namespace
+
+int cmdSlice(Args& args) {
+  const auto start = Clock::now();
+  const bool quiet = args.flag("quiet");
+  const bool json = args.flag("json");
+  auto log = [quiet](const std::string& s) {
+    if (!quiet) std::cerr << s << std::endl;
+  };
+  SliceOptions options;
+  options.mode = parseSliceMode(args.str("mode", "zero"));
+  options.rule = parseCuspRule(args.str("cusp-rule", "geometric"));
+  options.axis = parseAxis(args.str("axis", "z"));
+  options.offsetIndex = static_cast<int>(args.integer("offset-index", 0));
+  options.refineSteps = static_cast<int>(args.integer("refine-steps", options.refineSteps));
+  options.precision = parsePrecision(args.str("precision", "float").c_str());
+  const double units = args.num("units", 1.0);
+  const double pixel = args.num("png-xy", 0.0);
+  const bool pngGiven = pixel != 0.0;
+  const bool svgPerLayer = args.flag("svg-per-layer");
+  args.flag("svg");  // one slices.svg is always written; accepted for clarity
+  const fs::path outDir = args.str("output", ".");
+  const std::string deviceSpec = args.str("device", "");
+  // Numbers: NaN marks "not given".
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double cusp = args.num("cusp", nan), minLayer = args.num("min-layer", nan), maxLayer = args.num("max-layer", nan);
+  const double layer = args.num("layer", nan), grid = args.num("grid", nan);
+  args.finish(1);
+  if (args.positional().empty()) throw UsageError("slice needs a field file: duplexfit slice FIELD --cusp T -o DIR");
+  if (std::isnan(layer) && std::isnan(cusp)) throw UsageError("slice needs --cusp T (adaptive) or --layer H (uniform)");
+  if (!std::isnan(cusp) && !(cusp > 0.0)) throw UsageError("--cusp must be > 0 (got " + std::to_string(cusp) + ")");
+  if (!std::isnan(layer) && !(layer > 0.0)) throw UsageError("--layer must be > 0 (got " + std::to_string(layer) + ")");
+  if (!std::isnan(minLayer) && !(minLayer > 0.0)) throw UsageError("--min-layer must be > 0");
+  if (!std::isnan(maxLayer) && !(maxLayer > 0.0)) throw UsageError("--max-layer must be > 0");
+  if (!std::isnan(minLayer) && !std::isnan(maxLayer) && minLayer > maxLayer) {
+    throw UsageError("--min-layer " + std::to_string(minLayer) + " exceeds --max-layer " + std::to_string(maxLayer));
+  }
+  if (!std::isnan(grid) && !(grid > 0.0)) throw UsageError("--grid must be > 0 (got " + std::to_string(grid) + ")");
+  if (!(units > 0.0)) throw UsageError("--units must be > 0");
+  if (pngGiven && !(pixel > 0.0)) throw UsageError("--png-xy must be > 0");
+  if (options.refineSteps < 0 || options.refineSteps > 64) throw UsageError("--refine-steps must be in 0..64");
+  options.cusp = std::isnan(cusp) ? 0.0 : cusp;
+  options.layer = std::isnan(layer) ? 0.0 : layer;
+  options.minLayer = std::isnan(minLayer) ? 0.0 : minLayer;
+  options.maxLayer = std::isnan(maxLayer) ? 0.0 : maxLayer;
+  options.grid = std::isnan(grid) ? 0.0 : grid;
+  const std::string input = args.positional()[0];
+
+  const ImplicitField field = ImplicitField::load(input);
+  const Device device = deviceSpec.empty() ? Device::openDefault() : Device::open(deviceSpec);
+  log("device: " + device.description());
+  const Slicer slicer(device, field, options);  // validates the options against the field
+  const SliceOptions& used = slicer.options();
+  if (pngGiven) {
+    // Fail before slicing when the masks cannot be made.
+    const Eigen::Vector3d size = slicer.bounds().sizes();
+    const double w = (size[(used.axis + 1) % 3] + 4 * used.grid) / pixel;
+    const double h = (size[(used.axis + 2) % 3] + 4 * used.grid) / pixel;
+    if (w > 65536.0 || h > 65536.0) throw UsageError("--png-xy " + std::to_string(pixel) + " gives masks larger than 65536 pixels a side");
+  }
+  SliceStaging staging(outDir);  // fails early, before slicing, if the folder is unusable
+  log(std::string("slicing ") + input + " along " + "xyz"[used.axis] + ", mode " + sliceModeName(used.mode) +
+      (used.layer > 0.0 ? ", uniform layers " + std::to_string(used.layer)
+                        : ", cusp " + std::to_string(used.cusp) + ", layers " + std::to_string(used.minLayer) + " to " +
+                              std::to_string(used.maxLayer)) +
+      ", grid " + std::to_string(used.grid) + ", heights " + std::to_string(used.start) + " to " +
+      std::to_string(used.end));
+
+  auto t = Clock::now();
+  const SliceResult result = slicer.run([&](const SliceProgress& p) {
+    if (!quiet) {
+      std::cerr << "  layer " << p.layer << "  height " << std::setprecision(6) << p.height << "  thickness "
+                << p.thickness << "  loops " << p.loops << "  (" << std::setprecision(3) << 100.0 * p.fraction
+                << "%)\n";
+    }
+    return true;
+  });
+  const double sliceSeconds = since(t);
+  std::size_t touching = 0;
+  for (const SliceLayer& l : result.layers) touching += l.touchesBoundary ? 1 : 0;
+  if (touching > 0) {
+    log("warning: in " + std::to_string(touching) + " layer(s) a level set reached the padded grid border; loops were closed there");
+  }
+
+  t = Clock::now();
+  writeCli(staging.path("slices.cli"), result, units);
+  if (svgPerLayer) {
+    const std::string dir = staging.path("svg", true);
+    for (std::size_t i = 0; i < result.layers.size(); ++i) {
+      writeSliceSvg((fs::path(dir) / layerName(i, "svg")).string(), result, static_cast<int>(i));
+    }
+  } else {
+    writeSliceSvg(staging.path("slices.svg"), result);
+  }
+  std::vector<double> maskArea;
+  if (pngGiven) {
+    const std::string dir = staging.path("masks", true);
+    const Eigen::AlignedBox2d box = planeBox(result);
+    for (std::size_t i = 0; i < result.layers.size(); ++i) {
+      const Image img = rasterizeLayer(result.layers[i], box, pixel);
+      std::size_t white = 0;
+      for (std::uint8_t p : img.pixels) white += p != 0 ? 1 : 0;
+      maskArea.push_back(static_cast<double>(white) * pixel * pixel);
+      writePng((fs::path(dir) / layerName(i, "png")).string(), img);
+    }
+  }
+  const double writeSeconds = since(t);
+
+  // Summary statistics.
+  double tMin = std::numeric_limits<double>::infinity(), tMax = 0.0, tSum = 0.0;
+  std::size_t loops = 0;
+  for (const SliceLayer& l : result.layers) {
+    tMin = std::min(tMin, l.thickness);
+    tMax = std::max(tMax, l.thickness);
+    tSum += l.thickness;
+    loops += l.loops.size();
+  }
+  const std::size_t n = result.layers.size();
+  const double tMean = n > 0 ? tSum / static_cast<double>(n) : 0.0;
+  if (n == 0) tMin = 0.0;
+
+  std::ostringstream js;
+  JsonWriter w(js);
+  w.beginObject().field("input", input).field("device", device.info().spec).field("mode", sliceModeName(result.mode));
+  w.field("axis", std::string(1, "xyz"[result.axis])).field("adaptive", result.adaptive);
+  w.field("cusp_rule", cuspRuleName(result.rule));
+  w.field("cusp", result.cusp).field("min_layer", result.minLayer).field("max_layer", result.maxLayer);
+  w.field("uniform_layer", result.layer).field("grid", result.grid).field("units_mm", units);
+  w.key("levels").beginArray();
+  for (double l : result.levels) w.value(l);
+  w.endArray();
+  w.field("start", result.start).field("end", result.end).field("layer_count", n);
+  w.key("thickness").beginObject().field("min", tMin).field("mean", tMean).field("max", tMax).endObject();
+  w.field("loops", loops).field("vertices", result.vertices).field("samples", result.samples);
+  w.field("refine_evaluations", result.refineEvaluations).field("layers_touching_border", touching);
+  w.key("heights").beginArray();
+  for (const SliceLayer& l : result.layers) w.value(l.height);
+  w.endArray().key("areas").beginArray();
+  for (const SliceLayer& l : result.layers) w.value(l.area);
+  w.endArray().key("loops_per_layer").beginArray();
+  for (const SliceLayer& l : result.layers) w.value(l.loops.size());
+  w.endArray();
+  w.key("layers").beginArray();
+  for (std::size_t i = 0; i < n; ++i) {
+    const SliceLayer& l = result.layers[i];
+    std::size_t outer = 0;
+    for (const SliceLoop& p : l.loops) outer += p.outer() ? 1 : 0;
+    w.beginObject().field("index", i + 1).field("height", l.height).field("thickness", l.thickness);
+    w.field("raw_thickness", l.rawThickness).field("area", l.area).field("loops", l.loops.size());
+    w.field("outer_loops", outer).field("holes", l.loops.size() - outer).field("vertices", l.vertexCount());
+    if (pngGiven) w.field("mask_area", maskArea[i]);
+    if (l.touchesBoundary) w.field("touches_border", true);
+    w.endObject();
+  }
+  w.endArray();
+  w.key("seconds").beginObject().field("slice", sliceSeconds).field("write", writeSeconds);
+  w.field("total", since(start)).endObject();
+  w.field("layers_per_second", sliceSeconds > 0 ? static_cast<double>(n) / sliceSeconds : 0.0);
+  w.field("vertices_per_second", sliceSeconds > 0 ? static_cast<double>(result.vertices) / sliceSeconds : 0.0);
+  w.endObject();
+  {
+    AtomicFile f(staging.path("slices.json"));
+    f.write(js.str());
+    f.commit();
+  }
+  staging.commit();
+
+  if (json) {
+    std::cout << js.str();
+  } else {
+    std::cout << std::setprecision(5) << "slice " << input << ": " << n << " layers (" << sliceModeName(result.mode)
+              << ", " << (result.adaptive ? "adaptive" : "uniform") << "), thickness " << tMin << " to " << tMax
+              << " (mean " << tMean << "), " << loops << " loops, " << result.vertices << " vertices, " << sliceSeconds
+              << " s\n  " << (outDir / "slices.cli").string() << ", "
+              << (outDir / (svgPerLayer ? "svg/" : "slices.svg")).string() << ", "
+              << (outDir / "slices.json").string() << (pngGiven ? ", " + (outDir / "masks/").string() : "") << "\n";
+  }
+  return 0;
+}
+
 }  // namespace duplexfit::cli

@@ -1,1 +1,3 @@
 # Test sources of the slice module, relative to test/ (appended to DUPLEXFIT_MODULE_TESTS).
+list(APPEND DUPLEXFIT_MODULE_TESTS slice/test_slice.cpp)
+list(APPEND DUPLEXFIT_MODULE_TESTS slice/test_slice_io.cpp)
