@@ -1,0 +1,213 @@
+// Mesh measurements (algorithm.md §8): input validation shared by every command, a bounding-volume
+// hierarchy with exact closest-point queries, Metro-style area-uniform sampling, two-sided Metro
+// distances with the symmetric Hausdorff distance, offset-surface accuracy against a surface, and a
+// mesh check (closed, manifold, oriented, outward, genus, boundary loops, self-intersections).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "duplexfit/mesh.hpp"
+#include "duplexfit/types.hpp"
+
+namespace duplexfit {
+
+// ---------------------------------------------------------------------------------------------
+// Validation
+
+/// What validateMesh found besides hard errors.
+struct MeshValidation {
+  std::size_t vertices = 0, faces = 0;
+  std::size_t repeatedIndexFaces = 0;  ///< faces with a repeated vertex index
+  std::size_t zeroAreaFaces = 0;       ///< distinct indices but zero area (coincident or collinear corners)
+  std::int64_t firstDegenerateFace = -1;  ///< the first face of either kind, −1 when none
+  std::size_t degenerateFaces() const noexcept { return repeatedIndexFaces + zeroAreaFaces; }
+};
+
+/// Checks a mesh before any measurement: at least one face, every index in [0, #V), every vertex
+/// finite. Degenerate triangles are counted, not rejected. A triangle has zero area when
+/// |(b − a) × (c − a)| ≤ 1e-12 · (its longest edge)² (this includes coincident corners).
+/// @param source the name used in messages (typically the file name)
+/// @throws InvalidArgument "<source>: mesh has no faces", "<source>: face 12: index 99 out of range
+///         (mesh has 40 vertices)", "<source>: vertex 7: coordinate y is NaN" (or "is infinite").
+MeshValidation validateMesh(const Mesh& mesh, const std::string& source = "mesh");
+
+// ---------------------------------------------------------------------------------------------
+// Closest points and the triangle BVH
+
+/// The part of a triangle that holds a closest point.
+enum class TriangleFeature : std::uint8_t {
+  Face,    ///< the interior
+  Edge,    ///< edge `local` = corners (local, local + 1 mod 3), end points excluded
+  Vertex,  ///< corner `local`
+};
+
+/// The closest point of a mesh (or of one triangle) to a query point.
+struct ClosestPoint {
+  double distance = std::numeric_limits<double>::infinity();  ///< Euclidean distance, never NaN
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();             ///< the closest point
+  std::int64_t face = -1;                                      ///< face index in the mesh (−1: none)
+  TriangleFeature feature = TriangleFeature::Face;
+  int local = 0;  ///< corner or edge index within the face (see TriangleFeature)
+};
+
+/// The exact closest point of triangle (a, b, c) to q (Voronoi-region classification). Degenerate
+/// triangles (collinear or coincident corners) are treated as their edges; the result is never NaN
+/// for finite input. `face` is left at −1.
+ClosestPoint closestPointOnTriangle(const Eigen::Vector3d& q, const Eigen::Vector3d& a,
+                                    const Eigen::Vector3d& b, const Eigen::Vector3d& c);
+
+/// A binary bounding-volume hierarchy over the triangles of a mesh (object-median splits along the
+/// longest axis of the centroid bounds, at most 4 triangles a leaf), answering exact closest-point
+/// and box-overlap queries. Immutable after construction; copies share the tree; queries are
+/// thread-safe. The batch queries run in parallel with OpenMP.
+class TriangleBvh {
+ public:
+  /// Builds the tree (copies the triangle corners). Degenerate triangles are kept.
+  /// @throws InvalidArgument when the mesh has no faces or an index is out of range.
+  explicit TriangleBvh(const Mesh& mesh);
+
+  /// The closest point of the mesh to q.
+  ClosestPoint closest(const Eigen::Vector3d& q) const;
+  /// closest(q), starting from `hint`: −1, or the value a previous call left there (for a nearby
+  /// point, the search starts with a tight bound; coherent query sequences run about twice as fast).
+  /// The result does not depend on the hint.
+  ClosestPoint closest(const Eigen::Vector3d& q, std::int64_t& hint) const;
+  /// closest() for every row of `queries`, in parallel.
+  std::vector<ClosestPoint> closest(const Points& queries) const;
+  /// Only the distances, in parallel.
+  Eigen::VectorXd distances(const Points& queries) const;
+  /// Appends to `out` the faces whose bounding boxes intersect the box [lo, hi] (closed boxes).
+  void overlapping(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                   std::vector<std::int64_t>& out) const;
+
+  std::size_t faceCount() const noexcept;
+  std::size_t nodeCount() const noexcept;
+  int depth() const noexcept;  ///< levels of the tree (1 for a single leaf)
+
+  struct Data;  ///< the tree (private to the library)
+
+ private:
+  std::shared_ptr<const Data> data_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Sampling and distances
+
+/// Options of the Metro sampling (§8.2).
+struct MeasureOptions {
+  /// Face samples per triangle on average (> 0; may be fractional). The total is
+  /// ceil(samplesPerFace · #F) in expectation, spread over the faces in proportion to their area.
+  double samplesPerFace = 10.0;
+  /// Seed of the deterministic sampling: the same mesh, options and seed give the same samples on
+  /// any number of threads.
+  std::uint64_t seed = 1;
+  /// Also sample every vertex referenced by a face (Metro's vertex sampling).
+  bool includeVertices = true;
+};
+
+/// Samples of a mesh: the referenced vertices first (when included), then the face samples.
+struct MeshSamples {
+  Points points;                    ///< #S×3
+  std::vector<std::int64_t> faces;  ///< per sample, the face it lies on (−1 for a vertex sample)
+  std::size_t vertexSamples = 0, faceSamples = 0;
+};
+
+/// Area-uniform random samples of the faces (stratified: face i gets floor(M·aᵢ/A + uᵢ) samples with
+/// uᵢ uniform in [0, 1), then uniform points in the triangle), plus the referenced vertices.
+/// @throws InvalidArgument when samplesPerFace is not a positive finite number, or the mesh is
+/// invalid (validateMesh).
+MeshSamples sampleMesh(const Mesh& mesh, const MeasureOptions& options = {});
+
+/// Statistics of one set of per-sample values (distances or deviations).
+struct SampleStats {
+  std::size_t samples = 0;
+  double min = 0.0, max = 0.0, mean = 0.0, rms = 0.0;
+  double p99 = 0.0;  ///< 99th percentile (nearest rank)
+  Eigen::Vector3d maxAt = Eigen::Vector3d::Zero();       ///< the sample with the largest value
+  Eigen::Vector3d maxClosest = Eigen::Vector3d::Zero();  ///< its closest point on the other mesh
+};
+
+/// Two-sided Metro distance between meshes A and B.
+struct DistanceReport {
+  SampleStats forward;   ///< samples of A → mesh B
+  SampleStats backward;  ///< samples of B → mesh A
+  double hausdorff = 0.0;  ///< symmetric Hausdorff distance: max(forward.max, backward.max)
+  double diagonalA = 0.0, diagonalB = 0.0;  ///< bounding-box diagonals
+};
+
+/// Metro (§8.2): samples both meshes (options; B with seed + 1) and takes exact distances to the
+/// other mesh through a BVH. Mean and RMS are over all samples (vertices included).
+/// @throws InvalidArgument for invalid meshes ("first mesh"/"second mesh") or options.
+DistanceReport measureDistance(const Mesh& a, const Mesh& b, const MeasureOptions& options = {});
+
+/// Accuracy of an offset mesh O against its surface mesh S, for signed δ (positive = inward, as in
+/// FitOptions::offsets).
+struct OffsetReport {
+  double delta = 0.0;
+  std::size_t samples = 0;
+  SampleStats distance;           ///< dist(sample, S)
+  SampleStats deviation;          ///< |dist(sample, S) − |δ||
+  SampleStats relativeDistance;   ///< distance / |δ|
+  SampleStats relativeDeviation;  ///< deviation / |δ|
+  /// Samples on the wrong side of S (outside for δ > 0, inside for δ < 0). The side is the sign of
+  /// (sample − closest point) · the angle-weighted pseudo-normal of the closest feature (face, edge
+  /// or vertex) of S; samples exactly on S count as neither side.
+  std::size_t wrongSide = 0;
+  double wrongSideShare = 0.0;  ///< wrongSide / samples
+};
+
+/// Samples O (options) and measures it against S. S should be closed and outward-oriented.
+/// @throws InvalidArgument for invalid meshes ("offset mesh"/"surface mesh"), δ = 0 or not finite,
+/// or bad options.
+OffsetReport measureOffset(const Mesh& offset, const Mesh& surface, double delta,
+                           const MeasureOptions& options = {});
+
+// ---------------------------------------------------------------------------------------------
+// Mesh check
+
+/// Options of checkMesh.
+struct CheckOptions {
+  bool selfIntersections = true;  ///< look for intersecting triangle pairs (the slowest check)
+  std::size_t listedPairs = 20;   ///< how many intersecting pairs to list in MeshCheck::pairs
+};
+
+/// The facts checkMesh reports.
+struct MeshCheck {
+  MeshTopology topology;        ///< from analyzeTopology
+  MeshValidation validation;    ///< from validateMesh (degenerate triangles)
+  bool watertight = false;      ///< no boundary and no non-manifold edges
+  bool manifold = false;        ///< 2-manifold at every edge and vertex
+  bool oriented = false;        ///< neighbouring faces traverse their shared edge in opposite directions
+  bool outward = false;         ///< signed volume > 0
+  double signedVolume = 0.0, area = 0.0;
+  std::size_t boundaryLoops = 0;  ///< connected cycles of boundary edges
+  /// Genus (sum over components), known for manifold, consistently oriented meshes:
+  /// (2·components − χ − boundaryLoops) / 2.
+  bool genusKnown = false;
+  long long genus = 0;
+  bool selfIntersectionsChecked = false;
+  /// Intersecting triangle pairs: pairs without a shared vertex that touch or cross; pairs sharing
+  /// one vertex whose intersection extends beyond it; pairs sharing an edge that are coplanar and
+  /// fold over each other; duplicate faces. Vertices at identical positions count as shared.
+  /// Degenerate (zero-area) triangles are skipped.
+  std::size_t selfIntersections = 0;
+  std::vector<std::pair<std::int64_t, std::int64_t>> pairs;  ///< the first listedPairs pairs, sorted
+  /// closed, manifold, oriented, outward and free of self-intersections (when checked)
+  bool valid() const noexcept {
+    return watertight && manifold && oriented && outward && selfIntersections == 0;
+  }
+};
+
+/// Checks a mesh (validateMesh first).
+/// @throws InvalidArgument for an invalid mesh (no faces, bad index, NaN vertex).
+MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options = {});
+
+}  // namespace duplexfit

@@ -1,0 +1,493 @@
+// TriangleBvh: build by object-median splits (parallel over subtrees with OpenMP tasks), exact
+// closest-point queries by best-first descent with box pruning, box-overlap queries; and the exact
+// point-triangle closest point (Voronoi regions of the triangle, after Ericson, Real-Time Collision
+// Detection §5.1.5, re-derived here), with an edge fallback for degenerate triangles.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numeric>
+#include <string>
+
+#include "duplexfit/error.hpp"
+#include "measure/bvh_data.hpp"
+#include "measure/geometry.hpp"
+
+namespace duplexfit {
+
+namespace geom {
+
+namespace {
+
+/// Closest point of segment [a, b] to q; feature Vertex (local ia or ib) at the ends, else Edge.
+double closestOnSegment(const double* q, const double* a, const double* b, int ia, int ib, int edge,
+                        double* point, TriangleFeature& feature, int& local) {
+  double ab[3], aq[3];
+  sub(b, a, ab);
+  sub(q, a, aq);
+  const double l2 = norm2(ab);
+  double t = l2 > 0.0 ? dot(aq, ab) / l2 : 0.0;
+  if (!(t > 0.0)) {
+    t = 0.0;
+    feature = TriangleFeature::Vertex;
+    local = ia;
+  } else if (t >= 1.0) {
+    t = 1.0;
+    feature = TriangleFeature::Vertex;
+    local = ib;
+  } else {
+    feature = TriangleFeature::Edge;
+    local = edge;
+  }
+  if (t == 1.0) {
+    point[0] = b[0];
+    point[1] = b[1];
+    point[2] = b[2];
+  } else {
+    for (int k = 0; k < 3; ++k) point[k] = a[k] + t * ab[k];
+  }
+  return dist2(q, point);
+}
+
+}  // namespace
+
+double closestOnTriangle(const double* q, const double* tri, double* point, TriangleFeature& feature,
+                         int& local) {
+  const double* a = tri;
+  const double* b = tri + 3;
+  const double* c = tri + 6;
+  double ab[3], ac[3];
+  sub(b, a, ab);
+  sub(c, a, ac);
+  auto set = [&](const double* p, TriangleFeature f, int l) {
+    point[0] = p[0];
+    point[1] = p[1];
+    point[2] = p[2];
+    feature = f;
+    local = l;
+    return dist2(q, point);
+  };
+  if (nearlyDegenerate(ab, ac)) {
+    // A segment or a point: the best of the three edges.
+    double p[3];
+    TriangleFeature f;
+    int l;
+    double best = closestOnSegment(q, a, b, 0, 1, 0, point, feature, local);
+    double d = closestOnSegment(q, b, c, 1, 2, 1, p, f, l);
+    if (d < best) {
+      best = d;
+      set(p, f, l);
+    }
+    d = closestOnSegment(q, c, a, 2, 0, 2, p, f, l);
+    if (d < best) {
+      best = d;
+      set(p, f, l);
+    }
+    return best;
+  }
+  double ap[3];
+  sub(q, a, ap);
+  const double d1 = dot(ab, ap), d2 = dot(ac, ap);
+  if (d1 <= 0.0 && d2 <= 0.0) return set(a, TriangleFeature::Vertex, 0);
+  double bp[3];
+  sub(q, b, bp);
+  const double d3 = dot(ab, bp), d4 = dot(ac, bp);
+  if (d3 >= 0.0 && d4 <= d3) return set(b, TriangleFeature::Vertex, 1);
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+    const double v = d1 / (d1 - d3);
+    double p[3] = {a[0] + v * ab[0], a[1] + v * ab[1], a[2] + v * ab[2]};
+    return set(p, TriangleFeature::Edge, 0);
+  }
+  double cp[3];
+  sub(q, c, cp);
+  const double d5 = dot(ab, cp), d6 = dot(ac, cp);
+  if (d6 >= 0.0 && d5 <= d6) return set(c, TriangleFeature::Vertex, 2);
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+    const double w = d2 / (d2 - d6);
+    double p[3] = {a[0] + w * ac[0], a[1] + w * ac[1], a[2] + w * ac[2]};
+    return set(p, TriangleFeature::Edge, 2);
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    double p[3] = {b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2])};
+    return set(p, TriangleFeature::Edge, 1);
+  }
+  const double denom = va + vb + vc;
+  const double v = vb / denom, w = vc / denom;
+  double p[3] = {a[0] + v * ab[0] + w * ac[0], a[1] + v * ab[1] + w * ac[1], a[2] + v * ab[2] + w * ac[2]};
+  const double d = set(p, TriangleFeature::Face, 0);
+  if (std::isfinite(d)) return d;
+  // Unreachable for non-degenerate finite input; keep the result finite regardless.
+  double e[3];
+  TriangleFeature f;
+  int l;
+  double best = closestOnSegment(q, a, b, 0, 1, 0, point, feature, local);
+  for (int k = 1; k < 3; ++k) {
+    const double dk = closestOnSegment(q, tri + 3 * k, tri + 3 * ((k + 1) % 3), k, (k + 1) % 3, k, e, f, l);
+    if (dk < best) {
+      best = dk;
+      set(e, f, l);
+    }
+  }
+  return best;
+}
+
+}  // namespace geom
+
+ClosestPoint closestPointOnTriangle(const Eigen::Vector3d& q, const Eigen::Vector3d& a,
+                                    const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const double tri[9] = {a.x(), a.y(), a.z(), b.x(), b.y(), b.z(), c.x(), c.y(), c.z()};
+  const double qq[3] = {q.x(), q.y(), q.z()};
+  ClosestPoint r;
+  double p[3];
+  const double d2 = geom::closestOnTriangle(qq, tri, p, r.feature, r.local);
+  r.distance = std::sqrt(d2);
+  r.point = Eigen::Vector3d(p[0], p[1], p[2]);
+  return r;
+}
+
+namespace {
+
+constexpr std::uint32_t kLeafSize = 4;
+constexpr std::size_t kParallelBuild = 16384;  // subtrees at least this large become OpenMP tasks
+
+using Node = TriangleBvh::Data::Node;
+
+/// Node counts of median-split subtrees by triangle count (two distinct sizes a level).
+class NodeCounts {
+ public:
+  explicit NodeCounts(std::size_t n) { count(n); }
+  std::size_t operator()(std::size_t n) const { return n <= kLeafSize ? 1 : memo_.at(n); }
+  int depth(std::size_t n) const { return n <= kLeafSize ? 1 : 1 + std::max(depth(n / 2), depth(n - n / 2)); }
+
+ private:
+  std::size_t count(std::size_t n) {
+    if (n <= kLeafSize) return 1;
+    const auto it = memo_.find(n);
+    if (it != memo_.end()) return it->second;
+    const std::size_t c = 1 + count(n / 2) + count(n - n / 2);
+    memo_[n] = c;
+    return c;
+  }
+  std::map<std::size_t, std::size_t> memo_;
+};
+
+struct Builder {
+  const double* corners;   // 9 per face, mesh order
+  const double* centroids; // 3 per face
+  std::uint32_t* order;
+  Node* nodes;
+  const NodeCounts* counts;
+
+  /// The node's coin: axis = normalised sum of the (area-weighted) triangle normals, centre = box
+  /// centre, then the largest axial and radial offsets of the corners (slightly inflated).
+  void coin(Node& n, std::size_t begin, std::size_t end) const {
+    double axis[3] = {0.0, 0.0, 0.0};
+    for (std::size_t i = begin; i < end; ++i) {
+      const double* t = corners + 9 * std::size_t{order[i]};
+      double ab[3], ac[3], nn[3];
+      geom::sub(t + 3, t, ab);
+      geom::sub(t + 6, t, ac);
+      geom::cross(ab, ac, nn);
+      for (int k = 0; k < 3; ++k) axis[k] += nn[k];
+    }
+    double len = std::sqrt(geom::norm2(axis));
+    if (!(len > 0.0) || !std::isfinite(len)) {
+      axis[0] = 0.0;
+      axis[1] = 0.0;
+      axis[2] = 1.0;
+      len = 1.0;
+    }
+    for (int k = 0; k < 3; ++k) {
+      n.n[k] = axis[k] / len;
+      n.c[k] = 0.5 * (n.lo[k] + n.hi[k]);
+    }
+    double height = 0.0, radius2 = 0.0;
+    for (std::size_t i = begin; i < end; ++i) {
+      const double* t = corners + 9 * std::size_t{order[i]};
+      for (int v = 0; v < 3; ++v) {
+        double w[3];
+        geom::sub(t + 3 * v, n.c, w);
+        const double h = geom::dot(w, n.n);
+        height = std::max(height, std::abs(h));
+        radius2 = std::max(radius2, geom::norm2(w) - h * h);
+      }
+    }
+    // Inflate by a few ulps of the node's size so that rounding in the query never cuts a triangle off.
+    const double size = std::sqrt(geom::dist2(n.lo, n.hi));
+    n.halfHeight = height * (1.0 + 1e-12) + 1e-14 * size;
+    n.rho = std::sqrt(std::max(radius2, 0.0)) * (1.0 + 1e-12) + 1e-14 * size;
+  }
+
+  void build(std::size_t node, std::size_t begin, std::size_t end) {
+    Node& n = nodes[node];
+    double clo[3], chi[3];
+    for (int k = 0; k < 3; ++k) {
+      n.lo[k] = clo[k] = std::numeric_limits<double>::infinity();
+      n.hi[k] = chi[k] = -std::numeric_limits<double>::infinity();
+    }
+    for (std::size_t i = begin; i < end; ++i) {
+      const double* t = corners + 9 * std::size_t{order[i]};
+      const double* c = centroids + 3 * std::size_t{order[i]};
+      for (int k = 0; k < 3; ++k) {
+        n.lo[k] = std::min({n.lo[k], t[k], t[3 + k], t[6 + k]});
+        n.hi[k] = std::max({n.hi[k], t[k], t[3 + k], t[6 + k]});
+        clo[k] = std::min(clo[k], c[k]);
+        chi[k] = std::max(chi[k], c[k]);
+      }
+    }
+    coin(n, begin, end);
+    const std::size_t count = end - begin;
+    if (count <= kLeafSize) {
+      n.index = static_cast<std::uint32_t>(begin);
+      n.count = static_cast<std::uint32_t>(count);
+      return;
+    }
+    int axis = 0;
+    for (int k = 1; k < 3; ++k) {
+      if (chi[k] - clo[k] > chi[axis] - clo[axis]) axis = k;
+    }
+    const std::size_t mid = begin + count / 2;
+    const double* cen = centroids;
+    std::nth_element(order + begin, order + mid, order + end, [cen, axis](std::uint32_t x, std::uint32_t y) {
+      const double cx = cen[3 * std::size_t{x} + static_cast<std::size_t>(axis)];
+      const double cy = cen[3 * std::size_t{y} + static_cast<std::size_t>(axis)];
+      return cx != cy ? cx < cy : x < y;
+    });
+    const std::size_t left = node + 1;
+    const std::size_t right = left + (*counts)(mid - begin);
+    n.index = static_cast<std::uint32_t>(right);
+    n.count = 0;
+    if (count >= kParallelBuild) {
+#pragma omp task firstprivate(left, begin, mid)
+      build(left, begin, mid);
+#pragma omp task firstprivate(right, mid, end)
+      build(right, mid, end);
+#pragma omp taskwait
+    } else {
+      build(left, begin, mid);
+      build(right, mid, end);
+    }
+  }
+};
+
+}  // namespace
+
+TriangleBvh::TriangleBvh(const Mesh& mesh) {
+  const auto nf = static_cast<std::size_t>(mesh.faces.rows());
+  const Eigen::Index nv = mesh.vertices.rows();
+  if (nf == 0) throw InvalidArgument("TriangleBvh: mesh has no faces");
+  if (nf >= std::numeric_limits<std::uint32_t>::max() / 4) {
+    throw InvalidArgument("TriangleBvh: too many faces (" + std::to_string(nf) + ")");
+  }
+  auto data = std::make_shared<Data>();
+  std::vector<double> corners(9 * nf), centroids(3 * nf);
+  const double* v = mesh.vertices.data();
+  const std::int32_t* f = mesh.faces.data();
+  for (std::size_t i = 0; i < nf; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      const std::int32_t idx = f[3 * i + static_cast<std::size_t>(k)];
+      if (idx < 0 || idx >= nv) {
+        throw InvalidArgument("TriangleBvh: face " + std::to_string(i) + ": index " + std::to_string(idx) +
+                              " out of range (mesh has " + std::to_string(nv) + " vertices)");
+      }
+      for (std::size_t c = 0; c < 3; ++c) {
+        const double x = v[3 * static_cast<std::size_t>(idx) + c];
+        if (!std::isfinite(x)) {
+          throw InvalidArgument("TriangleBvh: vertex " + std::to_string(idx) + " is not finite");
+        }
+        corners[9 * i + 3 * static_cast<std::size_t>(k) + c] = x;
+      }
+    }
+    for (int c = 0; c < 3; ++c) {
+      centroids[3 * i + static_cast<std::size_t>(c)] =
+          (corners[9 * i + static_cast<std::size_t>(c)] + corners[9 * i + 3 + static_cast<std::size_t>(c)] +
+           corners[9 * i + 6 + static_cast<std::size_t>(c)]) / 3.0;
+    }
+  }
+  std::vector<std::uint32_t> order(nf);
+  std::iota(order.begin(), order.end(), 0U);
+  const NodeCounts counts(nf);
+  data->nodes.resize(counts(nf));
+  data->depth = counts.depth(nf);
+  Builder builder{corners.data(), centroids.data(), order.data(), data->nodes.data(), &counts};
+  if (nf >= kParallelBuild) {
+#pragma omp parallel default(none) shared(builder, nf)
+#pragma omp single
+    builder.build(0, 0, nf);
+  } else {
+    builder.build(0, 0, nf);
+  }
+  data->corners.resize(9 * nf);
+  data->normals.assign(3 * nf, 0.0);
+  data->faceOf.resize(nf);
+  for (std::size_t k = 0; k < nf; ++k) {
+    double* t = data->corners.data() + 9 * k;
+    std::copy_n(corners.data() + 9 * std::size_t{order[k]}, 9, t);
+    data->faceOf[k] = order[k];
+    double ab[3], ac[3], n[3];
+    geom::sub(t + 3, t, ab);
+    geom::sub(t + 6, t, ac);
+    geom::cross(ab, ac, n);
+    const double len = std::sqrt(geom::norm2(n));
+    if (!geom::nearlyDegenerate(ab, ac) && len > 0.0) {
+      for (std::size_t c = 0; c < 3; ++c) data->normals[3 * k + c] = n[c] / len;
+    }
+  }
+  data_ = std::move(data);
+}
+
+namespace {
+
+constexpr std::size_t kNoHint = ~std::size_t{0};
+
+/// Best-first descent: the closest point of the tree to q. `hint` (a triangle in leaf order, e.g. the
+/// answer of the previous, nearby query) gives the search a tight starting bound; on return it holds
+/// this query's triangle.
+ClosestPoint query(const TriangleBvh::Data& d, const double q[3], std::size_t& hint) {
+  struct Entry {
+    double d2;
+    std::uint32_t node;
+  };
+  Entry stack[96];
+  int sp = 0;
+  double best2 = std::numeric_limits<double>::infinity();
+  double bestPoint[3] = {0.0, 0.0, 0.0};
+  std::size_t bestTri = 0;
+  TriangleFeature bestFeature = TriangleFeature::Face;
+  int bestLocal = 0;
+  if (hint != kNoHint) {
+    best2 = geom::closestOnTriangle(q, d.triangle(hint), bestPoint, bestFeature, bestLocal);
+    bestTri = hint;
+  }
+  stack[sp++] = {TriangleBvh::Data::lowerBound2(d.nodes[0], q, best2), 0};
+  while (sp > 0) {
+    const Entry e = stack[--sp];
+    if (e.d2 >= best2) continue;
+    const Node& n = d.nodes[e.node];
+    if (n.count > 0) {
+      for (std::size_t k = n.index; k < std::size_t{n.index} + n.count; ++k) {
+        // The distance to the triangle's plane is a lower bound of the distance to the triangle.
+        const double* t = d.triangle(k);
+        const double* nk = d.normal(k);
+        const double plane = nk[0] * (q[0] - t[0]) + nk[1] * (q[1] - t[1]) + nk[2] * (q[2] - t[2]);
+        if (plane * plane >= best2) continue;
+        double p[3];
+        TriangleFeature f;
+        int l;
+        const double d2 = geom::closestOnTriangle(q, t, p, f, l);
+        if (d2 < best2) {
+          best2 = d2;
+          bestPoint[0] = p[0];
+          bestPoint[1] = p[1];
+          bestPoint[2] = p[2];
+          bestTri = k;
+          bestFeature = f;
+          bestLocal = l;
+        }
+      }
+      continue;
+    }
+    const std::uint32_t left = e.node + 1, right = n.index;
+    const double dl = TriangleBvh::Data::lowerBound2(d.nodes[left], q, best2);
+    const double dr = TriangleBvh::Data::lowerBound2(d.nodes[right], q, best2);
+    // Push the farther child first so that the nearer one is searched first.
+    if (dl <= dr) {
+      if (dr < best2) stack[sp++] = {dr, right};
+      if (dl < best2) stack[sp++] = {dl, left};
+    } else {
+      if (dl < best2) stack[sp++] = {dl, left};
+      if (dr < best2) stack[sp++] = {dr, right};
+    }
+  }
+  hint = bestTri;
+  ClosestPoint r;
+  r.distance = std::sqrt(best2);
+  r.point = Eigen::Vector3d(bestPoint[0], bestPoint[1], bestPoint[2]);
+  r.face = d.faceOf[bestTri];
+  r.feature = bestFeature;
+  r.local = bestLocal;
+  return r;
+}
+
+}  // namespace
+
+ClosestPoint TriangleBvh::closest(const Eigen::Vector3d& q) const {
+  const double qq[3] = {q.x(), q.y(), q.z()};
+  std::size_t hint = kNoHint;
+  return query(*data_, qq, hint);
+}
+
+ClosestPoint TriangleBvh::closest(const Eigen::Vector3d& q, std::int64_t& hint) const {
+  const double qq[3] = {q.x(), q.y(), q.z()};
+  std::size_t h = hint >= 0 && static_cast<std::size_t>(hint) < data_->faceOf.size() ? static_cast<std::size_t>(hint)
+                                                                                      : kNoHint;
+  const ClosestPoint r = query(*data_, qq, h);
+  hint = static_cast<std::int64_t>(h);
+  return r;
+}
+
+std::vector<ClosestPoint> TriangleBvh::closest(const Points& queries) const {
+  std::vector<ClosestPoint> out(static_cast<std::size_t>(queries.rows()));
+  const Data& d = *data_;
+  const double* q = queries.data();
+  const auto n = static_cast<long long>(queries.rows());
+#pragma omp parallel default(none) shared(out, d, q, n)
+  {
+    std::size_t hint = kNoHint;
+#pragma omp for schedule(dynamic, 256)
+    for (long long i = 0; i < n; ++i) out[static_cast<std::size_t>(i)] = query(d, q + 3 * i, hint);
+  }
+  return out;
+}
+
+Eigen::VectorXd TriangleBvh::distances(const Points& queries) const {
+  Eigen::VectorXd out(queries.rows());
+  const Data& d = *data_;
+  const double* q = queries.data();
+  const auto n = static_cast<long long>(queries.rows());
+#pragma omp parallel default(none) shared(out, d, q, n)
+  {
+    std::size_t hint = kNoHint;
+#pragma omp for schedule(dynamic, 256)
+    for (long long i = 0; i < n; ++i) out[static_cast<Eigen::Index>(i)] = query(d, q + 3 * i, hint).distance;
+  }
+  return out;
+}
+
+void TriangleBvh::overlapping(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                              std::vector<std::int64_t>& out) const {
+  const Data& d = *data_;
+  std::uint32_t stack[96];
+  int sp = 0;
+  stack[sp++] = 0;
+  while (sp > 0) {
+    const Node& n = d.nodes[stack[--sp]];
+    const std::uint32_t self = static_cast<std::uint32_t>(&n - d.nodes.data());
+    bool disjoint = false;
+    for (int k = 0; k < 3; ++k) disjoint = disjoint || n.lo[k] > hi[k] || n.hi[k] < lo[k];
+    if (disjoint) continue;
+    if (n.count == 0) {
+      stack[sp++] = n.index;
+      stack[sp++] = self + 1;
+      continue;
+    }
+    for (std::size_t k = n.index; k < std::size_t{n.index} + n.count; ++k) {
+      const double* t = d.triangle(k);
+      bool miss = false;
+      for (int c = 0; c < 3; ++c) {
+        miss = miss || std::min({t[c], t[3 + c], t[6 + c]}) > hi[c] || std::max({t[c], t[3 + c], t[6 + c]}) < lo[c];
+      }
+      if (!miss) out.push_back(d.faceOf[k]);
+    }
+  }
+}
+
+std::size_t TriangleBvh::faceCount() const noexcept { return data_->faceOf.size(); }
+std::size_t TriangleBvh::nodeCount() const noexcept { return data_->nodes.size(); }
+int TriangleBvh::depth() const noexcept { return data_->depth; }
+
+}  // namespace duplexfit

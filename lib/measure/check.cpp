@@ -1,0 +1,382 @@
+// checkMesh: topology (analyzeTopology), boundary loops, genus, signed volume and intersecting
+// triangle pairs. Candidate pairs come from box queries on the BVH; each pair is classified by the
+// vertices it shares (vertices at identical positions are welded for this): none → a triangle-triangle
+// test (plane-side rejection, then overlap of the two intervals on the planes' common line, or a 2D test
+// for coplanar triangles); one → whether the triangles extend beyond the shared vertex in a common
+// direction; an edge → coplanar fold-over; all three → a duplicate face.
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/measure.hpp"
+#include "measure/geometry.hpp"
+
+namespace duplexfit {
+
+namespace {
+
+using geom::cross;
+using geom::dot;
+using geom::norm2;
+using geom::sub;
+
+constexpr double kRelTol = 1e-10;  // geometric tolerance relative to the larger triangle's longest edge
+
+class DisjointSets {
+ public:
+  explicit DisjointSets(std::size_t n) : parent_(n) { std::iota(parent_.begin(), parent_.end(), std::size_t{0}); }
+  std::size_t find(std::size_t x) {
+    while (parent_[x] != x) {
+      parent_[x] = parent_[parent_[x]];
+      x = parent_[x];
+    }
+    return x;
+  }
+  void unite(std::size_t a, std::size_t b) { parent_[find(a)] = find(b); }
+
+ private:
+  std::vector<std::size_t> parent_;
+};
+
+/// Connected cycles of boundary edges (edges of exactly one non-degenerate face).
+std::size_t countBoundaryLoops(const Mesh& mesh) {
+  const auto nf = static_cast<std::size_t>(mesh.faces.rows());
+  const std::int32_t* f = mesh.faces.data();
+  std::vector<std::uint64_t> keys;
+  keys.reserve(3 * nf);
+  for (std::size_t i = 0; i < nf; ++i) {
+    const std::int32_t* t = f + 3 * i;
+    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) continue;
+    for (std::size_t k = 0; k < 3; ++k) {
+      const auto a = static_cast<std::uint64_t>(t[k]), b = static_cast<std::uint64_t>(t[(k + 1) % 3]);
+      keys.push_back((std::min(a, b) << 32) | std::max(a, b));
+    }
+  }
+  std::sort(keys.begin(), keys.end());
+  DisjointSets sets(static_cast<std::size_t>(mesh.vertices.rows()));
+  std::vector<std::size_t> boundaryVertices;
+  for (std::size_t i = 0; i < keys.size();) {
+    std::size_t j = i + 1;
+    while (j < keys.size() && keys[j] == keys[i]) ++j;
+    if (j - i == 1) {
+      const std::size_t a = keys[i] >> 32, b = keys[i] & 0xffffffffULL;
+      sets.unite(a, b);
+      boundaryVertices.push_back(a);
+      boundaryVertices.push_back(b);
+    }
+    i = j;
+  }
+  std::vector<std::size_t> roots;
+  roots.reserve(boundaryVertices.size());
+  for (const std::size_t v : boundaryVertices) roots.push_back(sets.find(v));
+  std::sort(roots.begin(), roots.end());
+  return static_cast<std::size_t>(std::unique(roots.begin(), roots.end()) - roots.begin());
+}
+
+/// Vertex ids with vertices at identical positions merged (the smallest index of each position).
+std::vector<std::int32_t> weldedIds(const Mesh& mesh) {
+  const auto nv = static_cast<std::size_t>(mesh.vertices.rows());
+  const double* v = mesh.vertices.data();
+  std::vector<std::int32_t> order(nv);
+  std::iota(order.begin(), order.end(), 0);
+  auto less = [v](std::int32_t a, std::int32_t b) {
+    const double* pa = v + 3 * static_cast<std::size_t>(a);
+    const double* pb = v + 3 * static_cast<std::size_t>(b);
+    for (int k = 0; k < 3; ++k) {
+      if (pa[k] != pb[k]) return pa[k] < pb[k];
+    }
+    return a < b;
+  };
+  std::sort(order.begin(), order.end(), less);
+  std::vector<std::int32_t> id(nv);
+  for (std::size_t i = 0; i < nv;) {
+    std::size_t j = i + 1;
+    const double* pi = v + 3 * static_cast<std::size_t>(order[i]);
+    while (j < nv) {
+      const double* pj = v + 3 * static_cast<std::size_t>(order[j]);
+      if (pi[0] != pj[0] || pi[1] != pj[1] || pi[2] != pj[2]) break;
+      ++j;
+    }
+    for (std::size_t k = i; k < j; ++k) id[static_cast<std::size_t>(order[k])] = order[i];  // order[i] is the smallest
+    i = j;
+  }
+  return id;
+}
+
+/// A triangle prepared for the pair tests.
+struct Tri {
+  double p[9];
+  double n[3];       // unit normal
+  std::int32_t id[3];  // welded vertex ids
+  double tol;        // kRelTol · longest edge
+  bool skip;         // degenerate
+};
+
+/// Distances of q's corners to the plane (unit normal n through a), snapped to 0 within tol.
+void planeDistances(const double* q, const double* n, const double* a, double tol, double* d) {
+  for (int k = 0; k < 3; ++k) {
+    double e[3];
+    sub(q + 3 * k, a, e);
+    d[k] = dot(n, e);
+    if (std::abs(d[k]) <= tol) d[k] = 0.0;
+  }
+}
+
+bool sameStrictSide(const double* d) {
+  return (d[0] > 0.0 && d[1] > 0.0 && d[2] > 0.0) || (d[0] < 0.0 && d[1] < 0.0 && d[2] < 0.0);
+}
+
+/// The interval of a triangle on the line with direction D (unit), given its corners' plane distances.
+void lineInterval(const double* p, const double* d, const double* dir, double& lo, double& hi) {
+  lo = std::numeric_limits<double>::infinity();
+  hi = -lo;
+  auto add = [&](double t) {
+    lo = std::min(lo, t);
+    hi = std::max(hi, t);
+  };
+  for (int k = 0; k < 3; ++k) {
+    if (d[k] == 0.0) add(dot(dir, p + 3 * k));
+    const int m = (k + 1) % 3;
+    if ((d[k] > 0.0 && d[m] < 0.0) || (d[k] < 0.0 && d[m] > 0.0)) {
+      const double t = d[k] / (d[k] - d[m]);
+      double x[3];
+      for (int c = 0; c < 3; ++c) x[c] = p[3 * k + c] + t * (p[3 * m + c] - p[3 * k + c]);
+      add(dot(dir, x));
+    }
+  }
+}
+
+double orient2(const double* a, const double* b, const double* c) {
+  return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+}
+
+/// Orientation of c against segment ab, snapped to 0 when c is within tol of the line.
+int side2(const double* a, const double* b, const double* c, double tol) {
+  const double o = orient2(a, b, c);
+  const double len = std::hypot(b[0] - a[0], b[1] - a[1]);
+  if (std::abs(o) <= tol * len) return 0;
+  return o > 0.0 ? 1 : -1;
+}
+
+bool onSegment2(const double* a, const double* b, const double* c, double tol) {
+  return c[0] >= std::min(a[0], b[0]) - tol && c[0] <= std::max(a[0], b[0]) + tol &&
+         c[1] >= std::min(a[1], b[1]) - tol && c[1] <= std::max(a[1], b[1]) + tol;
+}
+
+bool segments2(const double* a, const double* b, const double* c, const double* d, double tol) {
+  const int o1 = side2(a, b, c, tol), o2 = side2(a, b, d, tol);
+  const int o3 = side2(c, d, a, tol), o4 = side2(c, d, b, tol);
+  if (o1 * o2 < 0 && o3 * o4 < 0) return true;
+  return (o1 == 0 && onSegment2(a, b, c, tol)) || (o2 == 0 && onSegment2(a, b, d, tol)) ||
+         (o3 == 0 && onSegment2(c, d, a, tol)) || (o4 == 0 && onSegment2(c, d, b, tol));
+}
+
+bool inside2(const double* t, const double* p, double tol) {
+  const int s0 = side2(t, t + 2, p, tol), s1 = side2(t + 2, t + 4, p, tol), s2 = side2(t + 4, t, p, tol);
+  return (s0 >= 0 && s1 >= 0 && s2 >= 0) || (s0 <= 0 && s1 <= 0 && s2 <= 0);
+}
+
+/// Coplanar triangles (plane normal n): overlap in the projection that drops n's largest axis.
+bool coplanarIntersect(const double* p, const double* q, const double* n, double tol) {
+  int drop = 0;
+  for (int k = 1; k < 3; ++k) {
+    if (std::abs(n[k]) > std::abs(n[drop])) drop = k;
+  }
+  const int u = (drop + 1) % 3, w = (drop + 2) % 3;
+  double a[6], b[6];
+  for (int k = 0; k < 3; ++k) {
+    a[2 * k] = p[3 * k + u];
+    a[2 * k + 1] = p[3 * k + w];
+    b[2 * k] = q[3 * k + u];
+    b[2 * k + 1] = q[3 * k + w];
+  }
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      if (segments2(a + 2 * i, a + 2 * ((i + 1) % 3), b + 2 * j, b + 2 * ((j + 1) % 3), tol)) return true;
+    }
+  }
+  return inside2(a, b, tol) || inside2(b, a, tol);
+}
+
+/// Triangles without a shared vertex: do they touch or cross (within tol)?
+bool disjointPairIntersect(const Tri& s, const Tri& t, double tol) {
+  double dq[3], dp[3];
+  planeDistances(t.p, s.n, s.p, tol, dq);
+  if (sameStrictSide(dq)) return false;
+  planeDistances(s.p, t.n, t.p, tol, dp);
+  if (sameStrictSide(dp)) return false;
+  if (dq[0] == 0.0 && dq[1] == 0.0 && dq[2] == 0.0) return coplanarIntersect(s.p, t.p, s.n, tol);
+  if (dp[0] == 0.0 && dp[1] == 0.0 && dp[2] == 0.0) return coplanarIntersect(s.p, t.p, t.n, tol);
+  double dir[3];
+  cross(s.n, t.n, dir);
+  const double len = std::sqrt(norm2(dir));
+  if (!(len > 0.0)) return coplanarIntersect(s.p, t.p, s.n, tol);
+  for (double& x : dir) x /= len;
+  double lo1, hi1, lo2, hi2;
+  lineInterval(s.p, dp, dir, lo1, hi1);
+  lineInterval(t.p, dq, dir, lo2, hi2);
+  if (!(lo1 <= hi1) || !(lo2 <= hi2)) return false;
+  return std::max(lo1, lo2) <= std::min(hi1, hi2) + tol;
+}
+
+/// Is direction d strictly inside the sector spanned by e1, e2 (angle below 180°)?
+bool inSector(const double* e1, const double* e2, const double* d) {
+  double w[3], c1[3], c2[3];
+  cross(e1, e2, w);
+  cross(e1, d, c1);
+  cross(d, e2, c2);
+  const double scale = std::sqrt(norm2(w) * norm2(d));
+  const double eps = 1e-10 * scale;
+  return dot(c1, w) > eps * std::sqrt(norm2(e1)) && dot(c2, w) > eps * std::sqrt(norm2(e2));
+}
+
+/// Triangles sharing exactly the vertex at corner i of s and corner j of t: does their intersection
+/// extend beyond it?
+bool vertexPairIntersect(const Tri& s, int i, const Tri& t, int j) {
+  const double* v = s.p + 3 * i;
+  double a1[3], a2[3], b1[3], b2[3];
+  sub(s.p + 3 * ((i + 1) % 3), v, a1);
+  sub(s.p + 3 * ((i + 2) % 3), v, a2);
+  sub(t.p + 3 * ((j + 1) % 3), v, b1);
+  sub(t.p + 3 * ((j + 2) % 3), v, b2);
+  double dir[3];
+  cross(s.n, t.n, dir);
+  if (std::sqrt(norm2(dir)) > 1e-10) {
+    // Different planes: the intersection lies on their common line through v.
+    const double neg[3] = {-dir[0], -dir[1], -dir[2]};
+    return (inSector(a1, a2, dir) && inSector(b1, b2, dir)) || (inSector(a1, a2, neg) && inSector(b1, b2, neg));
+  }
+  // One plane: the sectors at v overlap when an edge or the bisector of one lies inside the other.
+  double abis[3], bbis[3];
+  for (int k = 0; k < 3; ++k) {
+    abis[k] = a1[k] / std::sqrt(norm2(a1)) + a2[k] / std::sqrt(norm2(a2));
+    bbis[k] = b1[k] / std::sqrt(norm2(b1)) + b2[k] / std::sqrt(norm2(b2));
+  }
+  return inSector(a1, a2, b1) || inSector(a1, a2, b2) || inSector(a1, a2, bbis) || inSector(b1, b2, a1) ||
+         inSector(b1, b2, a2) || inSector(b1, b2, abis);
+}
+
+/// Triangles sharing the edge (corners i0, i1 of s): coplanar and folded onto the same side.
+bool edgePairIntersect(const Tri& s, int i0, int i1, const Tri& t, int jOther, double tol) {
+  const double* u = s.p + 3 * i0;
+  const double* w = s.p + 3 * i1;
+  const double* a = s.p + 3 * (3 - i0 - i1);
+  const double* b = t.p + 3 * jOther;
+  double ub[3];
+  sub(b, u, ub);
+  if (std::abs(dot(s.n, ub)) > tol) return false;
+  double e[3], ua[3], ca[3], cb[3];
+  sub(w, u, e);
+  sub(a, u, ua);
+  cross(e, ua, ca);
+  cross(e, ub, cb);
+  return dot(ca, cb) > 0.0;
+}
+
+bool pairIntersect(const Tri& s, const Tri& t, double tol) {
+  int shared = 0, si[3] = {0, 0, 0}, ti[3] = {0, 0, 0};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      if (s.id[i] == t.id[j]) {
+        si[shared] = i;
+        ti[shared] = j;
+        ++shared;
+      }
+    }
+  }
+  if (shared == 0) return disjointPairIntersect(s, t, tol);
+  if (shared == 1) return vertexPairIntersect(s, si[0], t, ti[0]);
+  if (shared == 2) return edgePairIntersect(s, si[0], si[1], t, 3 - ti[0] - ti[1], tol);
+  return true;  // the same three vertices: a duplicate face
+}
+
+}  // namespace
+
+MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
+  MeshCheck r;
+  r.validation = validateMesh(mesh, "mesh");
+  r.topology = analyzeTopology(mesh);
+  r.watertight = r.topology.watertight();
+  r.manifold = r.topology.manifold();
+  r.oriented = r.topology.oriented();
+  r.signedVolume = signedVolume(mesh);
+  r.area = surfaceArea(mesh);
+  r.outward = r.signedVolume > 0.0;
+  r.boundaryLoops = countBoundaryLoops(mesh);
+  if (r.manifold && r.oriented) {
+    const long long twice = 2 * static_cast<long long>(r.topology.components) - r.topology.eulerCharacteristic -
+                            static_cast<long long>(r.boundaryLoops);
+    if (twice >= 0 && twice % 2 == 0) {
+      r.genusKnown = true;
+      r.genus = twice / 2;
+    }
+  }
+  if (!options.selfIntersections) return r;
+  r.selfIntersectionsChecked = true;
+
+  const auto nf = static_cast<std::size_t>(mesh.faces.rows());
+  const std::vector<std::int32_t> welded = weldedIds(mesh);
+  std::vector<Tri> tris(nf);
+  const std::int32_t* f = mesh.faces.data();
+  const double* v = mesh.vertices.data();
+  for (std::size_t i = 0; i < nf; ++i) {
+    Tri& t = tris[i];
+    for (std::size_t k = 0; k < 3; ++k) {
+      const auto idx = static_cast<std::size_t>(f[3 * i + k]);
+      t.id[k] = welded[idx];
+      for (std::size_t c = 0; c < 3; ++c) t.p[3 * k + c] = v[3 * idx + c];
+    }
+    double ab[3], ac[3], bc[3];
+    sub(t.p + 3, t.p, ab);
+    sub(t.p + 6, t.p, ac);
+    sub(t.p + 6, t.p + 3, bc);
+    cross(ab, ac, t.n);
+    const double len = std::sqrt(norm2(t.n));
+    const double longest = std::sqrt(std::max({norm2(ab), norm2(ac), norm2(bc)}));
+    t.tol = kRelTol * longest;
+    t.skip = t.id[0] == t.id[1] || t.id[1] == t.id[2] || t.id[0] == t.id[2] || !(len > 1e-12 * longest * longest);
+    if (!t.skip) {
+      for (double& x : t.n) x /= len;
+    }
+  }
+  const TriangleBvh tree(mesh);
+  std::vector<std::pair<std::int64_t, std::int64_t>> found;
+  const auto nfl = static_cast<long long>(nf);
+#pragma omp parallel default(none) shared(tris, tree, found, nfl)
+  {
+    std::vector<std::pair<std::int64_t, std::int64_t>> mine;
+    std::vector<std::int64_t> candidates;
+#pragma omp for schedule(dynamic, 512)
+    for (long long ii = 0; ii < nfl; ++ii) {
+      const Tri& s = tris[static_cast<std::size_t>(ii)];
+      if (s.skip) continue;
+      Eigen::Vector3d lo, hi;
+      for (int c = 0; c < 3; ++c) {
+        lo[c] = std::min({s.p[c], s.p[3 + c], s.p[6 + c]}) - s.tol;
+        hi[c] = std::max({s.p[c], s.p[3 + c], s.p[6 + c]}) + s.tol;
+      }
+      candidates.clear();
+      tree.overlapping(lo, hi, candidates);
+      for (const std::int64_t j : candidates) {
+        if (j == ii) continue;
+        const Tri& t = tris[static_cast<std::size_t>(j)];
+        if (t.skip) continue;
+        // The triangle with the larger tolerance (its box query is the wider one) owns the pair.
+        if (t.tol > s.tol || (t.tol == s.tol && j < ii)) continue;
+        if (pairIntersect(s, t, s.tol)) mine.emplace_back(std::min<std::int64_t>(ii, j), std::max<std::int64_t>(ii, j));
+      }
+    }
+#pragma omp critical(duplexfit_check_pairs)
+    found.insert(found.end(), mine.begin(), mine.end());
+  }
+  std::sort(found.begin(), found.end());
+  r.selfIntersections = found.size();
+  found.resize(std::min(found.size(), options.listedPairs));
+  r.pairs = std::move(found);
+  return r;
+}
+
+}  // namespace duplexfit

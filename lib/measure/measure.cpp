@@ -1,0 +1,364 @@
+// Mesh validation, Metro sampling (stratified area-uniform face samples from a counter-based random
+// generator, so results do not depend on the thread count), two-sided distances and offset accuracy
+// with the inside/outside decision by angle-weighted pseudo-normals (Bærentzen & Aanæs 2005).
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/measure.hpp"
+#include "measure/geometry.hpp"
+
+namespace duplexfit {
+
+namespace {
+
+const char* axisName(int k) { return k == 0 ? "x" : (k == 1 ? "y" : "z"); }
+
+/// |(b − a) × (c − a)| ≤ 1e-12 · (longest edge)².
+bool zeroArea(const double* a, const double* b, const double* c) {
+  double ab[3], ac[3], bc[3], n[3];
+  geom::sub(b, a, ab);
+  geom::sub(c, a, ac);
+  geom::sub(c, b, bc);
+  geom::cross(ab, ac, n);
+  const double longest2 = std::max({geom::norm2(ab), geom::norm2(ac), geom::norm2(bc)});
+  return std::sqrt(geom::norm2(n)) <= 1e-12 * longest2;
+}
+
+// Counter-based random numbers: splitmix64's finaliser over (seed, face, counter).
+std::uint64_t mix(std::uint64_t z) {
+  z += 0x9e3779b97f4a7c15ULL;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+double uniform(std::uint64_t seed, std::uint64_t face, std::uint64_t counter) {
+  const std::uint64_t h = mix(mix(seed ^ mix(face)) + counter);
+  return static_cast<double>(h >> 11) * 0x1.0p-53;
+}
+
+const double* vertexPtr(const Mesh& m, std::int32_t v) {
+  return m.vertices.data() + 3 * static_cast<std::size_t>(v);
+}
+
+double bboxDiagonal(const Mesh& m) {
+  if (m.vertices.rows() == 0) return 0.0;
+  return (m.vertices.colwise().maxCoeff() - m.vertices.colwise().minCoeff()).norm();
+}
+
+void checkOptions(const MeasureOptions& options) {
+  if (!(options.samplesPerFace > 0.0) || !std::isfinite(options.samplesPerFace)) {
+    throw InvalidArgument("samples per face must be a positive number (got " +
+                          std::to_string(options.samplesPerFace) + ")");
+  }
+  if (options.samplesPerFace > 1e6) {
+    throw InvalidArgument("samples per face must be at most 1e6 (got " + std::to_string(options.samplesPerFace) + ")");
+  }
+}
+
+/// Summary of `values` (reordered: p99 uses nth_element). argmax is written to *argmax.
+SampleStats summarize(std::vector<double>& values, std::size_t* argmax) {
+  SampleStats s;
+  s.samples = values.size();
+  *argmax = 0;
+  if (values.empty()) return s;
+  double sum = 0.0, sum2 = 0.0;
+  s.min = s.max = values[0];
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    const double v = values[i];
+    sum += v;
+    sum2 += v * v;
+    if (v > s.max) {
+      s.max = v;
+      *argmax = i;
+    }
+    s.min = std::min(s.min, v);
+  }
+  const auto n = static_cast<double>(values.size());
+  s.mean = sum / n;
+  s.rms = std::sqrt(sum2 / n);
+  const auto rank = static_cast<std::size_t>(std::ceil(0.99 * n));
+  const std::size_t k = rank == 0 ? 0 : rank - 1;
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+  s.p99 = values[k];
+  return s;
+}
+
+SampleStats scaled(SampleStats s, double factor) {
+  s.min *= factor;
+  s.max *= factor;
+  s.mean *= factor;
+  s.rms *= factor;
+  s.p99 *= factor;
+  return s;
+}
+
+/// One-sided distances from samples to a tree.
+SampleStats oneSided(const MeshSamples& samples, const TriangleBvh& tree) {
+  Eigen::VectorXd d = tree.distances(samples.points);
+  std::vector<double> values(d.data(), d.data() + d.size());
+  std::size_t argmax = 0;
+  SampleStats s = summarize(values, &argmax);
+  if (s.samples > 0) {
+    s.maxAt = samples.points.row(static_cast<Eigen::Index>(argmax)).transpose();
+    s.maxClosest = tree.closest(s.maxAt).point;
+  }
+  return s;
+}
+
+/// Angle-weighted pseudo-normals of a mesh: unit face normals, vertex normals, and edge normals on
+/// demand (the sum over the faces around the edge, found through the vertex → face lists).
+class PseudoNormals {
+ public:
+  explicit PseudoNormals(const Mesh& m) : mesh_(m) {
+    const auto nf = static_cast<std::size_t>(m.faces.rows());
+    const auto nv = static_cast<std::size_t>(m.vertices.rows());
+    faceNormals_.assign(3 * nf, 0.0);
+    vertexNormals_.assign(3 * nv, 0.0);
+    start_.assign(nv + 1, 0);
+    const std::int32_t* f = m.faces.data();
+    for (std::size_t i = 0; i < 3 * nf; ++i) ++start_[static_cast<std::size_t>(f[i]) + 1];
+    for (std::size_t v = 0; v < nv; ++v) start_[v + 1] += start_[v];
+    incident_.resize(3 * nf);
+    std::vector<std::size_t> fill(start_.begin(), start_.end() - 1);
+    for (std::size_t i = 0; i < nf; ++i) {
+      for (std::size_t k = 0; k < 3; ++k) {
+        incident_[fill[static_cast<std::size_t>(f[3 * i + k])]++] = static_cast<std::uint32_t>(i);
+      }
+      const double* a = vertexPtr(m, f[3 * i]);
+      const double* b = vertexPtr(m, f[3 * i + 1]);
+      const double* c = vertexPtr(m, f[3 * i + 2]);
+      double ab[3], ac[3], n[3];
+      geom::sub(b, a, ab);
+      geom::sub(c, a, ac);
+      geom::cross(ab, ac, n);
+      const double len = std::sqrt(geom::norm2(n));
+      if (!(len > 0.0)) continue;
+      for (int k = 0; k < 3; ++k) faceNormals_[3 * i + static_cast<std::size_t>(k)] = n[k] / len;
+      const double* corner[3] = {a, b, c};
+      for (std::size_t k = 0; k < 3; ++k) {
+        double e1[3], e2[3];
+        geom::sub(corner[(k + 1) % 3], corner[k], e1);
+        geom::sub(corner[(k + 2) % 3], corner[k], e2);
+        const double l1 = std::sqrt(geom::norm2(e1)), l2 = std::sqrt(geom::norm2(e2));
+        if (!(l1 > 0.0 && l2 > 0.0)) continue;
+        const double angle = std::acos(std::clamp(geom::dot(e1, e2) / (l1 * l2), -1.0, 1.0));
+        const auto v = static_cast<std::size_t>(f[3 * i + k]);
+        for (std::size_t c2 = 0; c2 < 3; ++c2) vertexNormals_[3 * v + c2] += angle * faceNormals_[3 * i + c2];
+      }
+    }
+  }
+
+  /// The pseudo-normal (not normalised) of the closest feature.
+  Eigen::Vector3d at(const ClosestPoint& cp) const {
+    const auto face = static_cast<std::size_t>(cp.face);
+    const std::int32_t* f = mesh_.faces.data() + 3 * face;
+    if (cp.feature == TriangleFeature::Face) return vec(faceNormals_, face);
+    if (cp.feature == TriangleFeature::Vertex) {
+      return vec(vertexNormals_, static_cast<std::size_t>(f[cp.local]));
+    }
+    const std::int32_t i = f[cp.local], j = f[(cp.local + 1) % 3];
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (std::size_t k = start_[static_cast<std::size_t>(i)]; k < start_[static_cast<std::size_t>(i) + 1]; ++k) {
+      const std::size_t g = incident_[k];
+      const std::int32_t* t = mesh_.faces.data() + 3 * g;
+      if (t[0] == j || t[1] == j || t[2] == j) sum += vec(faceNormals_, g);
+    }
+    return sum;
+  }
+
+ private:
+  static Eigen::Vector3d vec(const std::vector<double>& a, std::size_t i) {
+    return Eigen::Vector3d(a[3 * i], a[3 * i + 1], a[3 * i + 2]);
+  }
+  const Mesh& mesh_;
+  std::vector<double> faceNormals_, vertexNormals_;
+  std::vector<std::size_t> start_;
+  std::vector<std::uint32_t> incident_;
+};
+
+}  // namespace
+
+MeshValidation validateMesh(const Mesh& mesh, const std::string& source) {
+  MeshValidation r;
+  const Eigen::Index nv = mesh.vertices.rows();
+  const Eigen::Index nf = mesh.faces.rows();
+  r.vertices = static_cast<std::size_t>(nv);
+  r.faces = static_cast<std::size_t>(nf);
+  if (nf == 0) {
+    throw InvalidArgument(source + ": mesh has no faces (" + std::to_string(nv) + " vertices)");
+  }
+  const double* v = mesh.vertices.data();
+  for (Eigen::Index i = 0; i < nv; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      const double x = v[3 * i + k];
+      if (!std::isfinite(x)) {
+        throw InvalidArgument(source + ": vertex " + std::to_string(i) + ": coordinate " + axisName(k) +
+                              (std::isnan(x) ? " is NaN" : " is infinite"));
+      }
+    }
+  }
+  const std::int32_t* f = mesh.faces.data();
+  for (Eigen::Index i = 0; i < nf; ++i) {
+    const std::int32_t* t = f + 3 * i;
+    for (int k = 0; k < 3; ++k) {
+      if (t[k] < 0 || t[k] >= nv) {
+        throw InvalidArgument(source + ": face " + std::to_string(i) + ": index " + std::to_string(t[k]) +
+                              " out of range (mesh has " + std::to_string(nv) + " vertices)");
+      }
+    }
+    bool degenerate = false;
+    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) {
+      ++r.repeatedIndexFaces;
+      degenerate = true;
+    } else if (zeroArea(vertexPtr(mesh, t[0]), vertexPtr(mesh, t[1]), vertexPtr(mesh, t[2]))) {
+      ++r.zeroAreaFaces;
+      degenerate = true;
+    }
+    if (degenerate && r.firstDegenerateFace < 0) r.firstDegenerateFace = i;
+  }
+  return r;
+}
+
+MeshSamples sampleMesh(const Mesh& mesh, const MeasureOptions& options) {
+  checkOptions(options);
+  validateMesh(mesh, "sampled mesh");
+  const auto nf = static_cast<std::size_t>(mesh.faces.rows());
+  const auto nv = static_cast<std::size_t>(mesh.vertices.rows());
+  const std::int32_t* f = mesh.faces.data();
+
+  std::vector<double> area(nf);
+  for (std::size_t i = 0; i < nf; ++i) {
+    double ab[3], ac[3], n[3];
+    const double* a = vertexPtr(mesh, f[3 * i]);
+    geom::sub(vertexPtr(mesh, f[3 * i + 1]), a, ab);
+    geom::sub(vertexPtr(mesh, f[3 * i + 2]), a, ac);
+    geom::cross(ab, ac, n);
+    area[i] = 0.5 * std::sqrt(geom::norm2(n));
+  }
+  double total = 0.0;
+  for (const double a : area) total += a;
+  const double wanted = std::ceil(options.samplesPerFace * static_cast<double>(nf));
+  if (wanted > 2e9) {
+    throw InvalidArgument("sampling: " + std::to_string(options.samplesPerFace) + " samples per face on " +
+                          std::to_string(nf) + " faces is more than 2e9 samples");
+  }
+  // Stratified counts: expected wanted·aᵢ/A each (uniform over the faces when the area is zero).
+  std::vector<std::size_t> offset(nf + 1, 0);
+  for (std::size_t i = 0; i < nf; ++i) {
+    const double share = total > 0.0 ? area[i] / total : 1.0 / static_cast<double>(nf);
+    offset[i + 1] = offset[i] + static_cast<std::size_t>(std::floor(wanted * share + uniform(options.seed, i, 0)));
+  }
+
+  std::vector<std::size_t> vertexList;
+  if (options.includeVertices) {
+    std::vector<char> used(nv, 0);
+    for (std::size_t i = 0; i < 3 * nf; ++i) used[static_cast<std::size_t>(f[i])] = 1;
+    for (std::size_t v = 0; v < nv; ++v) {
+      if (used[v]) vertexList.push_back(v);
+    }
+  }
+  MeshSamples s;
+  s.vertexSamples = vertexList.size();
+  s.faceSamples = offset[nf];
+  s.points.resize(static_cast<Eigen::Index>(s.vertexSamples + s.faceSamples), 3);
+  s.faces.assign(s.vertexSamples + s.faceSamples, -1);
+  for (std::size_t k = 0; k < vertexList.size(); ++k) {
+    s.points.row(static_cast<Eigen::Index>(k)) = mesh.vertices.row(static_cast<Eigen::Index>(vertexList[k]));
+  }
+  double* out = s.points.data() + 3 * s.vertexSamples;
+  std::int64_t* outFace = s.faces.data() + s.vertexSamples;
+  const auto nfl = static_cast<long long>(nf);
+  const std::uint64_t seed = options.seed;
+#pragma omp parallel for schedule(dynamic, 1024) default(none) shared(mesh, f, offset, out, outFace, nfl, seed)
+  for (long long ii = 0; ii < nfl; ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
+    const double* a = vertexPtr(mesh, f[3 * i]);
+    const double* b = vertexPtr(mesh, f[3 * i + 1]);
+    const double* c = vertexPtr(mesh, f[3 * i + 2]);
+    for (std::size_t j = offset[i]; j < offset[i + 1]; ++j) {
+      const std::uint64_t local = j - offset[i];
+      const double s1 = std::sqrt(uniform(seed, i, 2 * local + 1));
+      const double r2 = uniform(seed, i, 2 * local + 2);
+      const double wa = 1.0 - s1, wb = s1 * (1.0 - r2), wc = s1 * r2;
+      for (std::size_t k = 0; k < 3; ++k) out[3 * j + k] = wa * a[k] + wb * b[k] + wc * c[k];
+      outFace[j] = ii;
+    }
+  }
+  return s;
+}
+
+DistanceReport measureDistance(const Mesh& a, const Mesh& b, const MeasureOptions& options) {
+  checkOptions(options);
+  validateMesh(a, "first mesh");
+  validateMesh(b, "second mesh");
+  DistanceReport r;
+  r.diagonalA = bboxDiagonal(a);
+  r.diagonalB = bboxDiagonal(b);
+  {
+    const TriangleBvh treeB(b);
+    const MeshSamples samplesA = sampleMesh(a, options);
+    r.forward = oneSided(samplesA, treeB);
+  }
+  {
+    const TriangleBvh treeA(a);
+    MeasureOptions ob = options;
+    ob.seed = options.seed + 1;
+    const MeshSamples samplesB = sampleMesh(b, ob);
+    r.backward = oneSided(samplesB, treeA);
+  }
+  r.hausdorff = std::max(r.forward.max, r.backward.max);
+  return r;
+}
+
+OffsetReport measureOffset(const Mesh& offsetMesh, const Mesh& surface, double delta,
+                           const MeasureOptions& options) {
+  checkOptions(options);
+  if (!std::isfinite(delta) || delta == 0.0) {
+    throw InvalidArgument("offset measurement: delta must be a non-zero number (got " + std::to_string(delta) + ")");
+  }
+  validateMesh(offsetMesh, "offset mesh");
+  validateMesh(surface, "surface mesh");
+  const TriangleBvh tree(surface);
+  const PseudoNormals normals(surface);
+  const MeshSamples samples = sampleMesh(offsetMesh, options);
+  const auto n = static_cast<long long>(samples.points.rows());
+  std::vector<double> dist(static_cast<std::size_t>(n)), dev(static_cast<std::size_t>(n));
+  const double absDelta = std::abs(delta);
+  const bool inward = delta > 0.0;
+  long long wrong = 0;
+  const double* q = samples.points.data();
+#pragma omp parallel reduction(+ : wrong) default(none) shared(tree, normals, q, n, dist, dev, absDelta, inward)
+  {
+    std::int64_t hint = -1;  // consecutive samples are near each other (same face of O)
+#pragma omp for schedule(dynamic, 256)
+    for (long long i = 0; i < n; ++i) {
+      const Eigen::Vector3d p(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
+      const ClosestPoint cp = tree.closest(p, hint);
+      const double side = (p - cp.point).dot(normals.at(cp));
+      if (inward ? side > 0.0 : side < 0.0) ++wrong;
+      dist[static_cast<std::size_t>(i)] = cp.distance;
+      dev[static_cast<std::size_t>(i)] = std::abs(cp.distance - absDelta);
+    }
+  }
+  OffsetReport r;
+  r.delta = delta;
+  r.samples = static_cast<std::size_t>(n);
+  r.wrongSide = static_cast<std::size_t>(wrong);
+  r.wrongSideShare = n > 0 ? static_cast<double>(wrong) / static_cast<double>(n) : 0.0;
+  std::size_t argmax = 0;
+  r.distance = summarize(dist, &argmax);
+  r.distance.maxAt = samples.points.row(static_cast<Eigen::Index>(argmax)).transpose();
+  r.distance.maxClosest = tree.closest(r.distance.maxAt).point;
+  r.deviation = summarize(dev, &argmax);
+  r.deviation.maxAt = samples.points.row(static_cast<Eigen::Index>(argmax)).transpose();
+  r.deviation.maxClosest = tree.closest(r.deviation.maxAt).point;
+  r.relativeDistance = scaled(r.distance, 1.0 / absDelta);
+  r.relativeDeviation = scaled(r.deviation, 1.0 / absDelta);
+  return r;
+}
+
+}  // namespace duplexfit
