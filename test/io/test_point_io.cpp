@@ -297,9 +297,9 @@ TEST_CASE("point io: files without normals read with zero normals only when allo
   const std::string ply = dir.file("plain.ply");
   writeBytes(ply, makePly("binary_little_endian", {v}));
 
-  checkIoError([&] { (void)readPointCloud(xyz); }, xyz, {"no normals", "line 1", "CloudCompare"});
+  checkIoError([&] { (void)readPointCloud(xyz); }, xyz, {"no normals", "line 1", "duplexfit normals"});
   checkIoError([&] { (void)readPointCloud(ply); }, ply,
-               {"no normals", "nx ny nz", "vertex properties: x y z", "estimate and orient"});
+               {"no normals", "nx ny nz", "vertex properties: x y z", "estimate and orient", "--estimate-normals"});
   PointReadOptions lenient;
   lenient.requireNormals = false;
   const PointCloudFile a = readPointCloudWithReport(xyz, lenient);
