@@ -19,6 +19,25 @@ class UsageError : public std::runtime_error {
 };
 
 
+/// A comma-separated list of finite numbers ("0.1,-0.05"), for option --`option`.
+inline std::vector<double> parseNumberList(const std::string& text, const char* option) {
+  if (text.empty()) throw UsageError(std::string("option --") + option + " needs at least one value");
+  std::vector<double> out;
+  std::size_t begin = 0;
+  while (begin <= text.size()) {
+    const std::size_t end = std::min(text.find(',', begin), text.size());
+    const std::string item = text.substr(begin, end - begin);
+    char* stop = nullptr;
+    const double v = std::strtod(item.c_str(), &stop);
+    if (item.empty() || stop == item.c_str() || *stop != '\0' || !std::isfinite(v)) {
+      throw UsageError(std::string("option --") + option + ": '" + item + "' is not a number");
+    }
+    out.push_back(v);
+    begin = end + 1;
+  }
+  return out;
+}
+
 /// Options as --key value / --key=value pairs and bare --flags.
 class Args {
  public:

@@ -33,22 +33,6 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-std::vector<double> parseList(const std::string& text, const char* option) {
-  std::vector<double> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    char* end = nullptr;
-    const double v = std::strtod(item.c_str(), &end);
-    if (item.empty() || end == item.c_str() || *end != '\0' || !std::isfinite(v)) {
-      throw UsageError(std::string("option --") + option + ": '" + item + "' is not a number");
-    }
-    out.push_back(v);
-  }
-  if (out.empty()) throw UsageError(std::string("option --") + option + " needs at least one value");
-  return out;
-}
-
 /// A folder inside the output folder that receives every output first; commit() moves the files into
 /// the output folder, the destructor removes whatever is left (a failed run leaves no partial output).
 class Staging {
@@ -151,7 +135,7 @@ int cmdFit(Args& args) {
     if (!quiet) std::cerr << s << std::endl;
   };
   FitOptions options;
-  options.offsets = parseList(args.str("offset", ""), "offset");
+  options.offsets = parseNumberList(args.str("offset", ""), "offset");
   options.offsetsRelative = args.flag("offset-rel");
   options.normalsInward = args.flag("normals-inward");
   options.validityTolerance = args.num("validity-tol", options.validityTolerance);

@@ -82,6 +82,16 @@ Device openDevice(const Common& c, double& buildSeconds) {
   return d;
 }
 
+/// Reads the input cloud, normals optional (each command decides what it needs).
+PointCloudFile readInput(const Common& c, double& seconds) {
+  const auto t = Clock::now();
+  PointReadOptions ro;
+  ro.requireNormals = false;
+  PointCloudFile file = readPointCloudWithReport(c.input, ro);
+  seconds = since(t);
+  return file;
+}
+
 int positiveInt(Args& args, const char* key, long def, long max) {
   const long v = args.integer(key, def);
   if (v < 1 || v > max) {
@@ -115,20 +125,15 @@ int cmdDenoise(Args& args) {
   auto log = [&](const std::string& s) {
     if (!c.quiet) std::cerr << s << std::endl;
   };
-  double buildSeconds = 0.0;
+  double buildSeconds = 0.0, readSeconds = 0.0;
   const Device device = openDevice(c, buildSeconds);
   log("device: " + device.description());
-
-  auto t = Clock::now();
-  PointReadOptions ro;
-  ro.requireNormals = false;
-  const PointCloudFile file = readPointCloudWithReport(c.input, ro);
+  const PointCloudFile file = readInput(c, readSeconds);
   if (!file.report.normals) {
     throw InvalidArgument(c.input + ": the cloud has no normals; the bilateral filter projects onto the tangent "
                                     "planes they define (run `duplexfit normals " +
                           c.input + " -o WITH_NORMALS.ply` first)");
   }
-  const double readSeconds = since(t);
   log("read " + std::to_string(file.points.size()) + " points from " + c.input);
 
   BilateralReport rep;
@@ -137,7 +142,7 @@ int cmdDenoise(Args& args) {
       ", radius " + std::to_string(rep.radius) + ", " + std::to_string(rep.meanNeighbors) + " neighbours a point, " +
       std::to_string(rep.seconds) + " s");
 
-  t = Clock::now();
+  const auto t = Clock::now();
   writePointCloud(c.output, out);
   const double writeSeconds = since(t);
 
@@ -198,15 +203,10 @@ int cmdNormals(Args& args) {
   auto log = [&](const std::string& s) {
     if (!c.quiet) std::cerr << s << std::endl;
   };
-  double buildSeconds = 0.0;
+  double buildSeconds = 0.0, readSeconds = 0.0;
   const Device device = openDevice(c, buildSeconds);
   log("device: " + device.description());
-
-  auto t = Clock::now();
-  PointReadOptions ro;
-  ro.requireNormals = false;
-  const PointCloudFile file = readPointCloudWithReport(c.input, ro);
-  const double readSeconds = since(t);
+  const PointCloudFile file = readInput(c, readSeconds);
   log("read " + std::to_string(file.points.size()) + " points from " + c.input +
       (file.report.normals ? " (with normals)" : " (no normals)"));
 
@@ -242,7 +242,7 @@ int cmdNormals(Args& args) {
     }
   }
 
-  t = Clock::now();
+  const auto t = Clock::now();
   writePointCloud(c.output, out);
   const double writeSeconds = since(t);
 

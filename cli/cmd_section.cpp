@@ -46,21 +46,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::vector<double> parseNumbers(const std::string& text, const char* option) {
-  std::vector<double> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    char* end = nullptr;
-    const double v = std::strtod(item.c_str(), &end);
-    if (item.empty() || end == item.c_str() || *end != '\0' || !std::isfinite(v)) {
-      throw UsageError(std::string("option --") + option + ": '" + item + "' is not a number");
-    }
-    out.push_back(v);
-  }
-  return out;
-}
-
 bool endsWithPng(const std::string& s) {
   if (s.size() < 4) return false;
   std::string ext = s.substr(s.size() - 4);
@@ -125,7 +110,7 @@ int cmdSection(Args& args) {
   options.precision = parsePrecision(args.str("precision", "float").c_str());
   const std::string rectText = args.str("rect", "");
   if (!rectText.empty()) {
-    const std::vector<double> r = parseNumbers(rectText, "rect");
+    const std::vector<double> r = parseNumberList(rectText, "rect");
     if (r.size() != 4 || !(r[2] > r[0]) || !(r[3] > r[1])) {
       throw UsageError("option --rect needs U0,V0,U1,V1 with U1 > U0 and V1 > V0");
     }
