@@ -11,12 +11,16 @@
 namespace duplexfit {
 
 struct SurfaceOptions {
-  /// Grid cell size in input units; 0: min(σ_M/2, min|δ|/4) (algorithm.md §7), capped by maxResolution.
+  /// Grid cell size in input units; 0: min(σ_M/2, min|δ|/4) (algorithm.md §7), kept between the cells of
+  /// minResolution and maxResolution.
   double cell = 0.0;
   /// Cells along the box's longest side; overrides `cell` when > 0.
   int resolution = 0;
   /// Upper bound on the automatic resolution (cells along the longest side).
   int maxResolution = 512;
+  /// Lower bound on the automatic resolution: the cell is at most (largest side)/minResolution, for sparse
+  /// clouds whose σ_M/2 would give a visibly faceted mesh.
+  int minResolution = 128;
   Precision precision = Precision::Float;
   PolygonizeOptions polygonize{};
 };

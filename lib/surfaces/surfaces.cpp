@@ -11,8 +11,10 @@ namespace duplexfit {
 
 GridSpec surfaceGrid(const ImplicitField& field, const std::vector<double>& isoValues, const SurfaceOptions& options) {
   if (field.levels().empty()) throw InvalidArgument("surface extraction: the field has no levels");
-  if (!(options.cell >= 0.0) || options.resolution < 0 || options.maxResolution < 8) {
-    throw InvalidArgument("surface extraction: cell must be >= 0, resolution >= 0 and maxResolution >= 8");
+  if (!(options.cell >= 0.0) || options.resolution < 0 || options.maxResolution < 8 || options.minResolution < 1 ||
+      options.minResolution > options.maxResolution) {
+    throw InvalidArgument("surface extraction: cell must be >= 0, resolution >= 0, maxResolution >= 8 and "
+                          "1 <= minResolution <= maxResolution");
   }
   const Eigen::AlignedBox3d& b = field.bounds();
   const double side = b.sizes().maxCoeff();
@@ -25,6 +27,9 @@ GridSpec surfaceGrid(const ImplicitField& field, const std::vector<double>& isoV
     for (double iso : isoValues) {
       if (iso != 0.0) cell = std::min(cell, std::abs(iso) / 4.0);
     }
+    // Sparse clouds have a coarse finest level (σ_M/2 of a 180-point sphere is 0.16 of its side): keep at
+    // least minResolution cells along the longest side so the meshes stay close to the field.
+    cell = std::min(cell, side / options.minResolution);
     cell = std::max(cell, side / options.maxResolution);
   }
   // Outward offsets (negative iso) lie outside the input bounds by |δ|; the fit can also bulge a little
