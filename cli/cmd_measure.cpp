@@ -159,7 +159,16 @@ int measureOffsetCommand(Args& args, const std::string& offsetPath, const std::s
     statsJson(w, "deviation", r.deviation);
     statsJson(w, "relative_distance", r.relativeDistance);
     statsJson(w, "relative_deviation", r.relativeDeviation);
-    w.field("wrong_side", r.wrongSide).field("wrong_side_share", r.wrongSideShare).field("seconds", seconds);
+    w.field("wrong_side", r.wrongSide).field("wrong_side_share", r.wrongSideShare);
+    w.field("components", r.components.size()).field("off_offset_components", r.offOffsetComponents);
+    w.key("component_list").beginArray();
+    for (std::size_t i = 0; i < r.components.size() && i < 50; ++i) {
+      const OffsetReport::Component& c = r.components[i];
+      w.beginObject().field("faces", c.faces).field("mean_distance", c.meanDistance);
+      w.field("mean_deviation", c.meanDeviation).field("max_deviation", c.maxDeviation);
+      w.field("off_offset", c.offOffset).endObject();
+    }
+    w.endArray().field("seconds", seconds);
     w.endObject();
     return 0;
   }
@@ -179,6 +188,10 @@ int measureOffsetCommand(Args& args, const std::string& offsetPath, const std::s
             << ")\n"
             << "largest deviation at " << point(r.deviation.maxAt) << ", closest on S "
             << point(r.deviation.maxClosest) << "\n";
+  std::size_t small = 0;
+  for (std::size_t i = 1; i < r.components.size(); ++i) small += r.components[i].faces < 100 ? 1 : 0;
+  std::cout << "components       " << r.components.size() << " (" << small << " of them under 100 faces), "
+            << r.offOffsetComponents << " not on the offset (mean |dist - |delta|| > |delta|/2)\n";
   return 0;
 }
 

@@ -162,6 +162,18 @@ struct OffsetReport {
   /// or vertex) of S; samples exactly on S count as neither side.
   std::size_t wrongSide = 0;
   double wrongSideShare = 0.0;  ///< wrongSide / samples
+  /// Per connected component of O (faces sharing vertices), from its vertices' distances to S; largest
+  /// component first.
+  struct Component {
+    std::size_t faces = 0, vertices = 0;
+    double meanDistance = 0.0;   ///< mean dist(vertex, S)
+    double meanDeviation = 0.0;  ///< mean |dist − |δ||
+    double maxDeviation = 0.0;
+    /// Not on the offset: mean deviation above half of |δ| (a spurious sheet, not a piece of the offset).
+    bool offOffset = false;
+  };
+  std::vector<Component> components;
+  std::size_t offOffsetComponents = 0;  ///< components with offOffset set
 };
 
 /// Samples O (options) and measures it against S. S should be closed and outward-oriented.

@@ -2,6 +2,8 @@
 // measurement tools, plus topology statistics (watertight, 2-manifold, components, Euler characteristic).
 #pragma once
 
+#include <vector>
+
 #include <cstdint>
 
 #include <Eigen/Core>
@@ -36,6 +38,11 @@ struct MeshTopology {
 
 /// Computes the topology of a mesh. @throws InvalidArgument naming a face with an out-of-range index.
 MeshTopology analyzeTopology(const Mesh& mesh);
+
+/// Connected components of a mesh's faces (faces sharing a vertex are connected): the component of each
+/// face, numbered 0..count−1 in the order of each component's first face. Faces with an index out of
+/// range are an InvalidArgument.
+std::vector<Index> faceComponents(const Mesh& mesh, std::size_t* count = nullptr);
 
 /// Signed volume enclosed by the mesh (positive for outward-oriented closed meshes).
 double signedVolume(const Mesh& mesh);

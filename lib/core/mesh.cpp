@@ -215,4 +215,38 @@ double surfaceArea(const Mesh& mesh) {
   return 0.5 * sum;
 }
 
+std::vector<Index> faceComponents(const Mesh& mesh, std::size_t* count) {
+  const auto nv = static_cast<std::size_t>(mesh.vertices.rows());
+  std::vector<std::size_t> parent(nv);
+  std::iota(parent.begin(), parent.end(), std::size_t{0});
+  auto find = [&parent](std::size_t x) {
+    while (parent[x] != x) {
+      parent[x] = parent[parent[x]];
+      x = parent[x];
+    }
+    return x;
+  };
+  for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
+    for (int c = 0; c < 3; ++c) {
+      const Index v = mesh.faces(f, c);
+      if (v < 0 || static_cast<std::size_t>(v) >= nv) {
+        throw InvalidArgument("face " + std::to_string(f) + ": vertex index " + std::to_string(v) +
+                              " out of range (mesh has " + std::to_string(nv) + " vertices)");
+      }
+    }
+    const std::size_t a = find(static_cast<std::size_t>(mesh.faces(f, 0)));
+    parent[find(static_cast<std::size_t>(mesh.faces(f, 1)))] = a;
+    parent[find(static_cast<std::size_t>(mesh.faces(f, 2)))] = a;
+  }
+  std::vector<Index> label(nv, -1), out(static_cast<std::size_t>(mesh.faces.rows()));
+  Index next = 0;
+  for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
+    const std::size_t r = find(static_cast<std::size_t>(mesh.faces(f, 0)));
+    if (label[r] < 0) label[r] = next++;
+    out[static_cast<std::size_t>(f)] = label[r];
+  }
+  if (count != nullptr) *count = static_cast<std::size_t>(next);
+  return out;
+}
+
 }  // namespace duplexfit

@@ -358,6 +358,38 @@ OffsetReport measureOffset(const Mesh& offsetMesh, const Mesh& surface, double d
   r.deviation.maxClosest = tree.closest(r.deviation.maxAt).point;
   r.relativeDistance = scaled(r.distance, 1.0 / absDelta);
   r.relativeDeviation = scaled(r.deviation, 1.0 / absDelta);
+
+  // Components: a piece of the offset lies at distance ≈ |δ| from S; a spurious sheet does not.
+  std::size_t count = 0;
+  const std::vector<Index> label = faceComponents(offsetMesh, &count);
+  std::vector<Index> vertexLabel(static_cast<std::size_t>(offsetMesh.vertices.rows()), -1);
+  r.components.assign(count, {});
+  for (Eigen::Index f = 0; f < offsetMesh.faces.rows(); ++f) {
+    const Index c = label[static_cast<std::size_t>(f)];
+    ++r.components[static_cast<std::size_t>(c)].faces;
+    for (int k = 0; k < 3; ++k) vertexLabel[static_cast<std::size_t>(offsetMesh.faces(f, k))] = c;
+  }
+  const Eigen::VectorXd vd = tree.distances(offsetMesh.vertices);
+  for (Eigen::Index v = 0; v < vd.size(); ++v) {
+    const Index c = vertexLabel[static_cast<std::size_t>(v)];
+    if (c < 0) continue;  // a vertex no face uses
+    OffsetReport::Component& comp = r.components[static_cast<std::size_t>(c)];
+    const double deviation = std::abs(vd[v] - absDelta);
+    ++comp.vertices;
+    comp.meanDistance += vd[v];
+    comp.meanDeviation += deviation;
+    comp.maxDeviation = std::max(comp.maxDeviation, deviation);
+  }
+  for (OffsetReport::Component& comp : r.components) {
+    if (comp.vertices > 0) {
+      comp.meanDistance /= static_cast<double>(comp.vertices);
+      comp.meanDeviation /= static_cast<double>(comp.vertices);
+    }
+    comp.offOffset = comp.meanDeviation > 0.5 * absDelta;
+    r.offOffsetComponents += comp.offOffset ? 1 : 0;
+  }
+  std::stable_sort(r.components.begin(), r.components.end(),
+                   [](const OffsetReport::Component& a, const OffsetReport::Component& b) { return a.faces > b.faces; });
   return r;
 }
 

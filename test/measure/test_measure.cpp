@@ -276,6 +276,44 @@ TEST_CASE("measure: offset statistics of concentric spheres, inward and outward,
   }
 }
 
+TEST_CASE("measure: offset components on the offset are told apart from a spurious sheet") {
+  const double r = 1.0, delta = 0.1;
+  const Mesh surface = icosphere(3, r);
+  // The inward offset sphere, two small pieces of it (a cap-sized sphere centred on the offset sphere's
+  // radius) and a spurious sphere near the centre, far from distance δ of the surface.
+  Mesh o = icosphere(3, r - delta);
+  for (const Mesh& extra : {icosphere(1, 0.01, Eigen::RowVector3d(0.0, 0.0, -(r - delta))),
+                            icosphere(2, 0.05, Eigen::RowVector3d(0.0, 0.1, 0.0))}) {
+    const auto base = static_cast<Index>(o.vertices.rows());
+    Mesh merged;
+    merged.vertices.resize(o.vertices.rows() + extra.vertices.rows(), 3);
+    merged.vertices << o.vertices, extra.vertices;
+    merged.faces.resize(o.faces.rows() + extra.faces.rows(), 3);
+    merged.faces << o.faces, (extra.faces.array() + base).matrix();
+    o = std::move(merged);
+  }
+  std::size_t count = 0;
+  const std::vector<Index> labels = faceComponents(o, &count);
+  CHECK(count == 3);
+  CHECK(labels.size() == static_cast<std::size_t>(o.faces.rows()));
+  MeasureOptions opts;
+  opts.samplesPerFace = 2;
+  const OffsetReport rep = measureOffset(o, surface, delta, opts);
+  REQUIRE(rep.components.size() == 3);
+  CHECK(rep.offOffsetComponents == 1);
+  CHECK(rep.components[0].faces == static_cast<std::size_t>(icosphere(3, 1.0).faces.rows()));  // largest first
+  CHECK_FALSE(rep.components[0].offOffset);
+  CHECK(rep.components[0].meanDistance == doctest::Approx(delta).epsilon(0.05));
+  std::size_t spurious = 0;
+  for (const auto& c : rep.components) {
+    if (c.offOffset) {
+      ++spurious;
+      CHECK(c.meanDistance > 0.8);  // the sphere near the centre is about 0.9 from the surface
+    }
+  }
+  CHECK(spurious == 1);
+}
+
 TEST_CASE("measure: invalid meshes and options are errors naming the source and element") {
   Mesh m = icosphere(0, 1.0);
   SUBCASE("no faces") {
