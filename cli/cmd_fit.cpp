@@ -149,6 +149,7 @@ int cmdFit(Args& args) {
   options.solver.relativeTolerance = args.num("tol", 0.0);
   options.solver.maxIterations = static_cast<int>(args.integer("max-iterations", options.solver.maxIterations));
   options.dropZeroNormalPoints = args.flag("drop-zero-normals");
+  options.sideTest = args.flag("side-test");
   SurfaceOptions surface;
   surface.cell = args.num("cell", 0.0);
   surface.resolution = static_cast<int>(args.integer("resolution", 0));
@@ -305,7 +306,7 @@ int cmdFit(Args& args) {
   std::ostringstream json;
   JsonWriter w(json);
   w.beginObject().field("input", input).field("points", file.report.points).field("duplicates_merged", merged);
-  w.field("mode", separate ? "separate" : "duplex");
+  w.field("mode", separate ? "separate" : "duplex").field("side_test", options.sideTest);
   w.key("preprocessing").beginObject();
   w.key("normals");
   if (normalReport) {

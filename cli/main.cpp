@@ -63,6 +63,8 @@ commands:
       --cell H / --resolution R     marching grid cell size / cells along the longest side
       --format ply|obj|stl          mesh format (default ply)
       --drop-zero-normals           drop points whose normal is zero instead of keeping them at f = 0
+      --side-test      also reject offset/off-surface points behind their nearest point's tangent
+                       plane (removes spurious sheets from flipped normals; see FitOptions::sideTest)
       --estimate-normals  the cloud has no (trusted) normals: estimate them by PCA over --normals-k K
                        neighbours (default 15) and orient them outward (as `duplexfit normals`)
       --denoise        bilateral point filter before fitting (as `duplexfit denoise`); override its

@@ -12,10 +12,16 @@ namespace duplexfit::detail {
 
 namespace {
 
-// Candidates p_i + step·ν_i for points with a non-zero normal, kept when the nearest point of P other
-// than p_i is at least |step|(1 − η) away. Returns the kept candidates and their source indices.
+// Candidates q = p_i + step·ν_i for points with a non-zero normal, kept when the nearest point p_j of P
+// other than p_i is at least |step|(1 − η) away (§3.1) and, with `sideTest`, q lies on the step's side of
+// p_j's tangent plane: sign(step)·(q − p_j)·ν_j > 0. The side test (ours, optional) rejects companions
+// that land behind the surface (e.g. from normals flipped against their neighbours', which plant a
+// spurious closed sheet outside the solid); it can also reject valid companions of coarse levels, where
+// the surface's curvature between cell centroids exceeds |step|. Returns the kept candidates and their
+// source indices.
 Points validCompanions(const Points& points, const Points& normals, const NeighborIndex& index, double step,
-                       double eta, std::size_t& candidates, std::vector<Eigen::Index>* keptSources = nullptr) {
+                       double eta, bool sideTest, std::size_t& candidates,
+                       std::vector<Eigen::Index>* keptSources = nullptr) {
   std::vector<Eigen::Index> source;
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
     if (normals.row(i).squaredNorm() > 0.0) source.push_back(i);
@@ -30,15 +36,22 @@ Points validCompanions(const Points& points, const Points& normals, const Neighb
   const double limit = std::abs(step) * (1.0 - eta);
   std::vector<char> keep(source.size(), 0);
   std::size_t kept = 0;
+  const double sign = step > 0.0 ? 1.0 : -1.0;
   for (std::size_t k = 0; k < source.size(); ++k) {
     double nearestOther = std::numeric_limits<double>::infinity();
+    Eigen::Index other = -1;
     for (auto e = nn.offsets[k]; e < nn.offsets[k + 1]; ++e) {
       if (nn.indices[static_cast<std::size_t>(e)] != source[k]) {
         nearestOther = nn.distances[static_cast<std::size_t>(e)];
+        other = nn.indices[static_cast<std::size_t>(e)];
         break;
       }
     }
-    keep[k] = nearestOther >= limit ? 1 : 0;
+    bool ok = nearestOther >= limit;
+    if (sideTest && ok && other >= 0 && normals.row(other).squaredNorm() > 0.0) {
+      ok = sign * (q.row(static_cast<Eigen::Index>(k)) - points.row(other)).dot(normals.row(other)) > 0.0;
+    }
+    keep[k] = ok ? 1 : 0;
     kept += static_cast<std::size_t>(keep[k]);
   }
   Points out(static_cast<Eigen::Index>(kept), 3);
@@ -54,11 +67,11 @@ Points validCompanions(const Points& points, const Points& normals, const Neighb
 
 }  // namespace
 
-Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta,
+Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta, bool sideTest,
                          std::vector<Eigen::Index>& sources) {
   const NeighborIndex index(points);
   std::size_t candidates = 0;
-  return validCompanions(points, normals, index, step, eta, candidates, &sources);
+  return validCompanions(points, normals, index, step, eta, sideTest, candidates, &sources);
 }
 
 LevelConstraints buildConstraints(const Points& points, const Points& normals, const ConstraintOptions& options) {
@@ -80,7 +93,8 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
 
   for (const double delta : options.offsets) {
     std::size_t candidates = 0;
-    blocks.push_back(validCompanions(points, normals, index, delta, options.validityTolerance, candidates));
+    blocks.push_back(validCompanions(points, normals, index, delta, options.validityTolerance, options.tangentSideTest,
+                                     candidates));
     blockTargets.push_back(delta);
     out.offsetCandidates.push_back(candidates);
     out.offsetKept.push_back(static_cast<std::size_t>(blocks.back().rows()));
@@ -91,7 +105,8 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   else if (options.offSurfaceSide != 0) sides = {options.offSurfaceSide};
   for (const int side : sides) {
     std::size_t candidates = 0;
-    blocks.push_back(validCompanions(points, normals, index, side * d, options.validityTolerance, candidates));
+    blocks.push_back(validCompanions(points, normals, index, side * d, options.validityTolerance, options.tangentSideTest,
+                                    candidates));
     blockTargets.push_back(side * d);
     out.offSurfaceCandidates += candidates;
     out.offSurfaceKept += static_cast<std::size_t>(blocks.back().rows());

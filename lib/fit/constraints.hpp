@@ -18,6 +18,8 @@ struct ConstraintOptions {
   double validityTolerance = 1e-2;  ///< η
   double mergeDistance = 0.0;       ///< 1e-6 σ_k
   bool dropZeroNormalPoints = false;
+  /// Also reject a companion q on the wrong side of its nearest other point's tangent plane (FitOptions::sideTest).
+  bool tangentSideTest = false;
 };
 
 struct LevelConstraints {
@@ -37,7 +39,7 @@ struct LevelConstraints {
 
 /// The offset points p_i + step·ν_i of the points with a non-zero normal that pass the validity test (§3.1)
 /// against all of `points`; `sources` receives the index of each kept point's p_i.
-Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta,
+Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta, bool sideTest,
                          std::vector<Eigen::Index>& sources);
 
 /// Builds the level's centres from its points P^k and inward normals ν (unit or zero).

@@ -118,6 +118,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     co.validityTolerance = options.validityTolerance;
     co.mergeDistance = options.mergeDistance * sigma;
     co.dropZeroNormalPoints = options.dropZeroNormalPoints;
+    co.tangentSideTest = options.sideTest;
     detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals, co);
     lr.surfacePoints = c.surface;
     lr.offsetCandidates = c.offsetCandidates;

@@ -10,7 +10,7 @@
 
 namespace duplexfit {
 
-PointSet offsetPointCloud(const PointSet& points, double delta, bool normalsInward, double eta) {
+PointSet offsetPointCloud(const PointSet& points, double delta, bool normalsInward, double eta, bool sideTest) {
   if (delta == 0.0 || !std::isfinite(delta)) throw InvalidArgument("offsetPointCloud: the offset must be finite and non-zero");
   // Unit inward normals ν (zero normals stay zero and produce no offset point).
   Points nu(points.normals().rows(), 3);
@@ -20,7 +20,7 @@ PointSet offsetPointCloud(const PointSet& points, double delta, bool normalsInwa
     nu.row(i) = len > 0.0 ? Eigen::RowVector3d((normalsInward ? 1.0 : -1.0) * n / len) : Eigen::RowVector3d::Zero();
   }
   std::vector<Eigen::Index> sources;
-  Points q = detail::validOffsetPoints(points.positions(), nu, delta, eta, sources);
+  Points q = detail::validOffsetPoints(points.positions(), nu, delta, eta, sideTest, sources);
   if (q.rows() == 0) {
     std::ostringstream msg;
     msg << "offset " << delta << ": no offset point passed the validity test (the offset is larger than the shape)";
@@ -57,7 +57,8 @@ SeparateFitResult fitSeparate(const Device& device, const PointSet& points, cons
       msg << "fit options: offset " << world << " is not smaller than the bounding box's largest side " << side;
       throw InvalidArgument(msg.str());
     }
-    const PointSet cloud = offsetPointCloud(points, world, options.normalsInward, options.validityTolerance);
+    const PointSet cloud =
+        offsetPointCloud(points, world, options.normalsInward, options.validityTolerance, options.sideTest);
     announce("offset " + std::to_string(j + 1));
     FitResult r = fit(device, cloud, single, progress);
     out.offsets.push_back(std::move(r.field));

@@ -2,6 +2,8 @@
 // says, the OpenCL path agrees with the reference path, and bad options are clear errors.
 #include <doctest/doctest.h>
 
+#include <algorithm>
+
 #include "duplexfit/error.hpp"
 #include "duplexfit/fit.hpp"
 #include "shapes.hpp"
@@ -113,6 +115,33 @@ TEST_SUITE("fit") {
     CHECK(in.positions().rowwise().norm().minCoeff() == doctest::Approx(0.4).epsilon(1e-9));
     CHECK_THROWS_AS(offsetPointCloud(cloud, 0.0), InvalidArgument);
     CHECK_THROWS_AS(offsetPointCloud(cloud, 0.9), InvalidArgument);  // deeper than the sphere: nothing valid
+  }
+
+  TEST_CASE("fit --side-test: offsets of flipped normals no longer plant a sheet outside the solid") {
+    DUPLEXFIT_OPENCL_DEVICE(d);
+    PointSet good = sphereCloud(3000, 0.5);
+    // Flip the normals of the 6 points nearest to the +x pole: their inward offsets land outside.
+    Points normals = good.normals();
+    const Eigen::RowVector3d pole(0.5, 0.0, 0.0);
+    std::vector<Eigen::Index> order(static_cast<std::size_t>(normals.rows()));
+    for (Eigen::Index i = 0; i < normals.rows(); ++i) order[static_cast<std::size_t>(i)] = i;
+    std::partial_sort(order.begin(), order.begin() + 6, order.end(), [&](Eigen::Index a, Eigen::Index b) {
+      return (good.positions().row(a) - pole).norm() < (good.positions().row(b) - pole).norm();
+    });
+    for (int k = 0; k < 6; ++k) normals.row(order[static_cast<std::size_t>(k)]) *= -1.0;
+    const PointSet bad(good.positions(), normals);
+    FitOptions options;
+    options.offsets = {0.1};
+    const Eigen::Vector3d outside(0.6, 0.0, 0.0);  // where the flipped points' offsets go
+    const FitResult plain = fit(d, bad, options);
+    options.sideTest = true;
+    const FitResult tested = fit(d, bad, options);
+    MESSAGE("f at the flipped points' offsets: " << plain.field.value(outside) << " without, "
+                                                  << tested.field.value(outside) << " with the side test");
+    CHECK(plain.field.value(outside) > 0.0);   // a spurious solid outside the sphere
+    CHECK(tested.field.value(outside) < 0.0);  // outside, as it should be
+    CHECK(tested.report.levelReports.back().offsetKept[0] < 3000);
+    CHECK(sphereError(tested.field, d, 0.4, 0.1) <= 0.01);
   }
 
   TEST_CASE("fit: relative offsets are fractions of the largest side") {
