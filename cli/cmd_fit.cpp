@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include "commands.hpp"
+#include "staging.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/fit.hpp"
 #include "duplexfit/io.hpp"
@@ -32,43 +33,6 @@ namespace {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
-/// A folder inside the output folder that receives every output first; commit() moves the files into
-/// the output folder, the destructor removes whatever is left (a failed run leaves no partial output).
-class Staging {
- public:
-  explicit Staging(const fs::path& outDir) : outDir_(outDir) {
-    std::error_code ec;
-    fs::create_directories(outDir_, ec);
-    if (ec || !fs::is_directory(outDir_)) {
-      throw IoError(outDir_.string() + ": cannot create the output folder (" + ec.message() + ")");
-    }
-    dir_ = outDir_ / (".duplexfit-tmp-" + std::to_string(getpid()));
-    fs::create_directory(dir_, ec);
-    if (ec) throw IoError(outDir_.string() + ": the output folder is not writable (" + ec.message() + ")");
-  }
-  ~Staging() {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
-  Staging(const Staging&) = delete;
-  Staging& operator=(const Staging&) = delete;
-  std::string path(const std::string& name) {
-    names_.push_back(name);
-    return (dir_ / name).string();
-  }
-  void commit() {
-    for (const std::string& n : names_) {
-      std::error_code ec;
-      fs::rename(dir_ / n, outDir_ / n, ec);
-      if (ec) throw IoError((outDir_ / n).string() + ": cannot move the output into place (" + ec.message() + ")");
-    }
-  }
-
- private:
-  fs::path outDir_, dir_;
-  std::vector<std::string> names_;
-};
 
 Device openDevice(Args& args, const std::function<void(const std::string&)>& log) {
   const std::string spec = args.str("device", "");

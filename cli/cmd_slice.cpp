@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "commands.hpp"
+#include "staging.hpp"
 #include "duplexfit/atomic_file.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/field.hpp"
@@ -50,51 +51,6 @@ namespace {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
-/// A folder inside the output folder that receives every output first; commit() moves each entry into
-/// the output folder (replacing an older one), the destructor removes whatever is left.
-class SliceStaging {
- public:
-  explicit SliceStaging(const fs::path& outDir) : outDir_(outDir) {
-    std::error_code ec;
-    fs::create_directories(outDir_, ec);
-    if (ec || !fs::is_directory(outDir_)) {
-      throw IoError(outDir_.string() + ": cannot create the output folder (" + ec.message() + ")");
-    }
-    dir_ = outDir_ / (".duplexfit-slice-tmp-" + std::to_string(getpid()));
-    fs::remove_all(dir_, ec);
-    fs::create_directory(dir_, ec);
-    if (ec) throw IoError(outDir_.string() + ": the output folder is not writable (" + ec.message() + ")");
-  }
-  ~SliceStaging() {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
-  SliceStaging(const SliceStaging&) = delete;
-  SliceStaging& operator=(const SliceStaging&) = delete;
-  /// A file (or folder, created) staged under `name`.
-  std::string path(const std::string& name, bool folder = false) {
-    names_.push_back(name);
-    if (folder) {
-      std::error_code ec;
-      fs::create_directory(dir_ / name, ec);
-      if (ec) throw IoError((dir_ / name).string() + ": cannot create (" + ec.message() + ")");
-    }
-    return (dir_ / name).string();
-  }
-  void commit() {
-    for (const std::string& n : names_) {
-      std::error_code ec;
-      if (fs::is_directory(dir_ / n)) fs::remove_all(outDir_ / n, ec);
-      fs::rename(dir_ / n, outDir_ / n, ec);
-      if (ec) throw IoError((outDir_ / n).string() + ": cannot move the output into place (" + ec.message() + ")");
-    }
-  }
-
- private:
-  fs::path outDir_, dir_;
-  std::vector<std::string> names_;
-};
 
 std::string layerName(std::size_t i, const char* ext) {
   char buf[32];
@@ -162,7 +118,7 @@ int cmdSlice(Args& args) {
     const double h = (size[(used.axis + 2) % 3] + 4 * used.grid) / pixel;
     if (w > 65536.0 || h > 65536.0) throw UsageError("--png-xy " + std::to_string(pixel) + " gives masks larger than 65536 pixels a side");
   }
-  SliceStaging staging(outDir);  // fails early, before slicing, if the folder is unusable
+  Staging staging(outDir);  // fails early, before slicing, if the folder is unusable
   log(std::string("slicing ") + input + " along " + "xyz"[used.axis] + ", mode " + sliceModeName(used.mode) +
       (used.layer > 0.0 ? ", uniform layers " + std::to_string(used.layer)
                         : ", cusp " + std::to_string(used.cusp) + ", layers " + std::to_string(used.minLayer) + " to " +
