@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <sstream>
 
+#include "duplexfit/error.hpp"
 #include "duplexfit/neighbors.hpp"
 
 namespace duplexfit::detail {
@@ -66,6 +68,21 @@ Points validCompanions(const Points& points, const Points& normals, const Neighb
 }
 
 }  // namespace
+
+std::vector<double> worldOffsets(const std::vector<double>& offsets, bool relative, double side) {
+  std::vector<double> out;
+  for (const double d : offsets) {
+    const double world = relative ? d * side : d;
+    if (world == 0.0) throw InvalidArgument("fit options: an offset of 0 is the surface itself; give a non-zero offset");
+    if (std::abs(world) >= side) {
+      std::ostringstream msg;
+      msg << "fit options: offset " << world << " is not smaller than the bounding box's largest side " << side;
+      throw InvalidArgument(msg.str());
+    }
+    out.push_back(world);
+  }
+  return out;
+}
 
 Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta, bool sideTest,
                          std::vector<Eigen::Index>& sources) {

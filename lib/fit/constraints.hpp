@@ -37,6 +37,10 @@ struct LevelConstraints {
   std::vector<Eigen::Index> surfaceNotCentres;
 };
 
+/// The offsets in input units (fractions of `side` when `relative`), each checked: non-zero and smaller
+/// than the bounding box's largest side `side`. @throws InvalidArgument naming the offending offset.
+std::vector<double> worldOffsets(const std::vector<double>& offsets, bool relative, double side);
+
 /// The offset points p_i + step·ν_i of the points with a non-zero normal that pass the validity test (§3.1)
 /// against all of `points`; `sources` receives the index of each kept point's p_i.
 Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta, bool sideTest,

@@ -66,17 +66,8 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
 
   // Offsets in input units (report) and normalised units (fit).
   std::vector<double> deltas;
-  for (double d : options.offsets) {
-    const double world = options.offsetsRelative ? d * side : d;
-    if (world == 0.0) throw InvalidArgument("fit options: an offset of 0 is the surface itself; give a non-zero offset");
-    if (std::abs(world) >= side) {
-      std::ostringstream msg;
-      msg << "fit options: offset " << world << " is not smaller than the bounding box's largest side " << side;
-      throw InvalidArgument(msg.str());
-    }
-    rep.offsets.push_back(world);
-    deltas.push_back(world * norm.scale);
-  }
+  rep.offsets = detail::worldOffsets(options.offsets, options.offsetsRelative, side);
+  for (const double world : rep.offsets) deltas.push_back(world * norm.scale);
   const bool inward = std::any_of(deltas.begin(), deltas.end(), [](double d) { return d > 0; });
   const bool outward = std::any_of(deltas.begin(), deltas.end(), [](double d) { return d < 0; });
   // Off-surface points go on the side without offsets (§3.2); none when offsets cover both sides.

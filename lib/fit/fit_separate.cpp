@@ -45,21 +45,16 @@ SeparateFitResult fitSeparate(const Device& device, const PointSet& points, cons
   auto announce = [&](const std::string& what) {
     if (progress && !progress({"start", 0, 0, 0, 0.0, what})) throw Cancelled("fit cancelled");
   };
+  // Checked before any work.
+  const std::vector<double> deltas = detail::worldOffsets(options.offsets, options.offsetsRelative, side);
   announce("surface");
   FitResult zero = fit(device, points, single, progress);
   out.zero = std::move(zero.field);
   out.zeroReport = std::move(zero.report);
-  for (std::size_t j = 0; j < options.offsets.size(); ++j) {
-    const double world = options.offsetsRelative ? options.offsets[j] * side : options.offsets[j];
-    if (world == 0.0) throw InvalidArgument("fit options: an offset of 0 is the surface itself; give a non-zero offset");
-    if (std::abs(world) >= side) {
-      std::ostringstream msg;
-      msg << "fit options: offset " << world << " is not smaller than the bounding box's largest side " << side;
-      throw InvalidArgument(msg.str());
-    }
+  for (const double world : deltas) {
     const PointSet cloud =
         offsetPointCloud(points, world, options.normalsInward, options.validityTolerance, options.sideTest);
-    announce("offset " + std::to_string(j + 1));
+    announce("offset " + std::to_string(out.offsets.size() + 1));
     FitResult r = fit(device, cloud, single, progress);
     out.offsets.push_back(std::move(r.field));
     out.offsetReports.push_back(std::move(r.report));
