@@ -17,6 +17,7 @@
 #include "duplexfit/fit.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/preprocess.hpp"
+#include "duplexfit/self_check.hpp"
 #include "duplexfit/surfaces.hpp"
 #include "json.hpp"
 
@@ -24,9 +25,11 @@ namespace duplexfit::cli {
 
 const std::vector<std::string> kFitValued = {"offset", "output", "device", "precision", "validity-tol", "levels",
                                              "smoothing", "fit-tol", "tol", "max-iterations", "cell", "resolution",
-                                             "format", "alpha", "normals-k", "denoise-sigma-s",
-                                             "denoise-sigma-r", "denoise-radius", "denoise-iterations"};
-const std::vector<std::string> kMeshValued = {"iso", "output", "device", "precision", "cell", "resolution"};
+                                             "format", "alpha", "anchor-skip", "normals-k", "denoise-sigma-s",
+                                             "denoise-sigma-r", "denoise-radius", "denoise-iterations",
+                                             "min-component"};
+const std::vector<std::string> kMeshValued = {"iso", "output", "device", "precision", "cell", "resolution",
+                                              "min-component"};
 
 namespace {
 
@@ -69,6 +72,11 @@ void writeFitReport(JsonWriter& w, const FitReport& rep) {
     for (auto v : l.offsetKept) w.value(v);
     w.endArray();
     w.field("off_surface_candidates", l.offSurfaceCandidates).field("off_surface_kept", l.offSurfaceKept);
+    w.key("offset_medial").beginArray();
+    for (auto v : l.offsetMedial) w.value(v);
+    w.endArray().field("off_surface_medial", l.offSurfaceMedial);
+    w.key("anchors").beginObject().field("inside", l.anchorsInside).field("outside", l.anchorsOutside);
+    w.field("skipped", l.anchorsSkipped).endObject();
     w.field("merged_centres", l.mergedCentres).field("centres", l.centres).field("nonzeros", l.nonZeros);
     w.field("max_residual_before", l.maxResidualBefore);
     w.key("cg").beginObject().field("converged", l.solve.converged).field("stop_reason", stopReasonName(l.solve.reason));
@@ -82,12 +90,95 @@ void writeFitReport(JsonWriter& w, const FitReport& rep) {
   w.field("E0", rep.e0).key("Edelta").beginArray();
   for (double e : rep.eDelta) w.value(e);
   w.endArray();
+  const OffsetCorrectionReport& c = rep.correction;
+  w.key("offset_correction").beginObject().field("applied", c.applied).field("sigma", c.sigma);
+  w.field("points", c.points).field("nonzeros", c.nonZeros).field("mean_before", c.meanBefore);
+  w.field("max_before", c.maxBefore).field("cg_iterations", c.solve.iterations);
+  w.field("cg_converged", c.solve.converged).field("seconds", c.seconds).endObject();
+  w.field("winding_seconds", rep.secondsWinding);
 }
 
 std::string meshExtension(Args& args) {
   const std::string f = args.str("format", "ply");
   if (f != "ply" && f != "obj" && f != "stl") throw UsageError("--format must be ply, obj or stl");
   return "." + f;
+}
+
+/// Default of --min-component (fit and mesh): connected components whose area is below this fraction of
+/// their mesh's area are dropped before the meshes are written. 0 drops nothing.
+constexpr double kDefaultMinComponent = 0.0;
+
+double minComponentOption(Args& args) {
+  const double f = args.num("min-component", kDefaultMinComponent);
+  if (!(f >= 0.0 && f < 1.0)) throw UsageError("--min-component must be an area fraction in [0, 1)");
+  return f;
+}
+
+std::string surfaceName(int surface) { return surface == 0 ? "zero level" : "offset " + std::to_string(surface); }
+
+std::string formatBox(const Eigen::AlignedBox3d& box) {
+  std::ostringstream s;
+  s << std::setprecision(4) << "[" << box.min().x() << ", " << box.min().y() << ", " << box.min().z() << "] - ["
+    << box.max().x() << ", " << box.max().y() << ", " << box.max().z() << "]";
+  return s.str();
+}
+
+/// One warning line per component that failed the self-check, and per mesh that lost small components.
+void logSelfCheck(const SelfCheckReport& r, const std::function<void(const std::string&)>& log) {
+  for (const SurfaceSelfCheck& s : r.surfaces) {
+    if (s.dropped.components == 0) continue;
+    std::ostringstream line;
+    line << std::setprecision(4) << surfaceName(s.surface) << ": dropped " << s.dropped.components
+         << " component(s) below " << r.minAreaFraction << " of the mesh's area (" << s.dropped.faces << " faces, "
+         << 100.0 * s.dropped.areaFraction << "% of the area)";
+    log(line.str());
+  }
+  for (const ComponentIssue& i : r.issues) {
+    std::ostringstream line;
+    line << std::setprecision(4) << "warning: self-check: " << surfaceName(i.surface) << " component " << i.component
+         << " (" << i.faces << " faces, area " << i.area << " = " << 100.0 * i.areaFraction << "% of the mesh, box "
+         << formatBox(i.box) << ") ";
+    if (i.why == ComponentIssue::Why::NoInputPoints) {
+      line << "carries no input point (none within " << r.pointTolerance << "; the nearest is " << i.nearestInputPoint
+           << " from its vertices)";
+    } else {
+      line << "is not on the offset: its vertices are " << i.meanDistance << " from the zero level on average, |delta| "
+           << std::abs(i.iso) << " (mean deviation " << i.meanDeviation << ")";
+    }
+    log(line.str());
+  }
+  std::ostringstream line;
+  line << "self-check: " << r.issues.size() << " component issue(s), " << r.seconds << " s";
+  log(line.str());
+}
+
+void writeSelfCheck(JsonWriter& w, const SelfCheckReport& r, const std::vector<std::string>& meshNames) {
+  w.key("self_check").beginObject().field("ok", r.ok()).field("points_checked", r.pointsChecked);
+  w.field("point_tolerance", r.pointTolerance).field("min_component", r.minAreaFraction);
+  w.key("surfaces").beginArray();
+  for (const SurfaceSelfCheck& s : r.surfaces) {
+    w.beginObject().field("surface", s.surface).field("file", meshNames[static_cast<std::size_t>(s.surface)]);
+    w.field("iso", s.iso).field("components", s.components).field("faces", s.faces).field("area", s.area);
+    w.field("issues", s.issues);
+    w.key("dropped").beginObject().field("components", s.dropped.components).field("faces", s.dropped.faces);
+    w.field("area", s.dropped.area).field("area_fraction", s.dropped.areaFraction).endObject();
+    w.endObject();
+  }
+  w.endArray().key("issues").beginArray();
+  for (const ComponentIssue& i : r.issues) {
+    w.beginObject().field("surface", i.surface).field("file", meshNames[static_cast<std::size_t>(i.surface)]);
+    w.field("iso", i.iso).field("component", i.component).field("why", componentIssueName(i.why));
+    w.field("faces", i.faces).field("vertices", i.vertices).field("area", i.area);
+    w.field("area_fraction", i.areaFraction);
+    w.key("box").beginObject().key("min").beginArray();
+    for (int k = 0; k < 3; ++k) w.value(i.box.min()[k]);
+    w.endArray().key("max").beginArray();
+    for (int k = 0; k < 3; ++k) w.value(i.box.max()[k]);
+    w.endArray().endObject();
+    w.field("mean_distance", i.meanDistance).field("mean_deviation", i.meanDeviation);
+    w.field("nearest_input_point", i.nearestInputPoint).endObject();
+  }
+  w.endArray().field("seconds", r.seconds).endObject();
 }
 
 }  // namespace
@@ -114,6 +205,10 @@ int cmdFit(Args& args) {
   options.solver.maxIterations = static_cast<int>(args.integer("max-iterations", options.solver.maxIterations));
   options.dropZeroNormalPoints = args.flag("drop-zero-normals");
   options.sideTest = args.flag("side-test");
+  options.signAnchors = !args.flag("no-anchors");
+  options.medialConstraints = !args.flag("no-medial");
+  options.offsetCorrection = args.flag("offset-correction");
+  options.anchorSkipFinest = static_cast<int>(args.integer("anchor-skip", options.anchorSkipFinest));
   SurfaceOptions surface;
   surface.cell = args.num("cell", 0.0);
   surface.resolution = static_cast<int>(args.integer("resolution", 0));
@@ -121,6 +216,8 @@ int cmdFit(Args& args) {
   const std::string ext = meshExtension(args);
   const bool strict = args.flag("strict");
   const bool separate = args.flag("separate");
+  SelfCheckOptions checkOptions;
+  checkOptions.minAreaFraction = minComponentOption(args);
   // Pre-processing (issue: noisy and unoriented scans): normals first (the filter needs them), then the
   // bilateral filter.
   const bool estimate = args.flag("estimate-normals");
@@ -245,6 +342,11 @@ int cmdFit(Args& args) {
       std::to_string(surfaces.grid.cells.z()) + ", " + std::to_string(100.0 * surfaces.stats.evaluatedFraction()) +
       "% of the nodes evaluated, " + std::to_string(meshSeconds) + " s");
 
+  // Every fit checks itself: zero-level components without input points and offset components away from
+  // |delta| are listed (and fail --strict); components below --min-component are dropped first.
+  const SelfCheckReport selfCheckReport = cleanAndSelfCheck(meshes, isos, file.points.positions(), checkOptions);
+  logSelfCheck(selfCheckReport, log);
+
   t = Clock::now();
   std::vector<std::string> meshNames;
   std::vector<MeshTopology> topo;
@@ -323,6 +425,7 @@ int cmdFit(Args& args) {
     w.endObject();
   }
   w.endArray();
+  writeSelfCheck(w, selfCheckReport, meshNames);
   w.key("grid").beginObject().field("nx", surfaces.grid.cells.x()).field("ny", surfaces.grid.cells.y());
   w.field("nz", surfaces.grid.cells.z()).field("cell", surfaces.grid.cellSize().maxCoeff());
   w.field("evaluated_fraction", surfaces.stats.evaluatedFraction()).field("box_growths", surfaces.boxGrowths);
@@ -354,6 +457,9 @@ int cmdFit(Args& args) {
               << (topo[i].watertight() && topo[i].manifold() ? "watertight 2-manifold" : "NOT watertight/manifold")
               << "\n";
   }
+  if (!selfCheckReport.ok()) {
+    std::cout << "  self-check: " << selfCheckReport.issues.size() << " component issue(s), listed in report.json\n";
+  }
   std::cout << " ";
   for (const std::string& f : fieldNames) std::cout << " " << (outDir / f).string() << ",";
   std::cout << " " << (outDir / "report.json").string() << "\n";
@@ -361,7 +467,7 @@ int cmdFit(Args& args) {
   for (const FitReport* r : allReports) {
     for (const LevelReport& l : r->levelReports) converged = converged && (l.solve.iterations == 0 || l.solve.converged);
   }
-  return strict && !converged ? kNumerical : 0;
+  return strict && (!converged || !selfCheckReport.ok()) ? kNumerical : 0;
 }
 
 int cmdMesh(Args& args) {
@@ -374,12 +480,21 @@ int cmdMesh(Args& args) {
   surface.cell = args.num("cell", 0.0);
   surface.resolution = static_cast<int>(args.integer("resolution", 0));
   surface.precision = parsePrecision(args.str("precision", "float").c_str());
+  const double minComponent = minComponentOption(args);
   const std::string out = args.str("output", "mesh.ply");
   const Device device = openDevice(args, log);
   args.finish(1);
   if (args.positional().empty()) throw UsageError("mesh needs a field file: duplexfit mesh FIELD --iso V -o OUT");
   const ImplicitField field = ImplicitField::load(args.positional()[0]);
-  const SurfaceResult s = extractSurfaces(device, field, {iso}, surface);
+  SurfaceResult s = extractSurfaces(device, field, {iso}, surface);
+  DroppedComponents dropped;
+  s.meshes[0] = dropSmallComponents(s.meshes[0], minComponent, &dropped);
+  if (dropped.components > 0) {
+    std::ostringstream line;
+    line << std::setprecision(4) << "dropped " << dropped.components << " component(s) below " << minComponent
+         << " of the mesh's area (" << dropped.faces << " faces, " << 100.0 * dropped.areaFraction << "% of the area)";
+    log(line.str());
+  }
   writeMesh(out, s.meshes[0]);
   const MeshTopology t = analyzeTopology(s.meshes[0]);
   std::cout << out << ": iso " << iso << ", " << t.faces << " triangles, " << t.components << " component(s), "

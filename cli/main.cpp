@@ -53,7 +53,8 @@ commands:
       --offset D[,D..] signed offsets in input units: positive = inward (hollowing), negative = outward
       --offset-rel     offsets are fractions of the bounding box's largest side
       -o DIR           output folder (default: current folder)
-      --device SPEC, --precision float|double, --quiet, --strict (exit 4 if a level's CG fails)
+      --device SPEC, --precision float|double, --quiet, --strict (exit 4 if a level's CG fails or
+                       the self-check below finds a component issue)
       --normals-inward the input normals point into the solid
       --validity-tol η offset validity tolerance (default 0.01)
       --levels M       number of levels (default: from the point density)
@@ -65,6 +66,12 @@ commands:
       --drop-zero-normals           drop points whose normal is zero instead of keeping them at f = 0
       --side-test      also reject offset/off-surface points behind their nearest point's tangent
                        plane (removes spurious sheets from flipped normals; see FitOptions::sideTest)
+      --no-anchors     no sign anchors in empty space (winding-number classified centres at levels
+                       1 .. M - --anchor-skip, default 2; they stop holes filling with phantom solid)
+      --no-medial      drop offset/off-surface points rejected by the validity test instead of moving
+                       them onto the medial surface of thin parts with their true distance as target
+      --offset-correction  add a correction level: points Newton-projected onto each δ level, fitted
+                       to the distance to the samples with support min(σ_M, |δ|/2) (experimental, off)
       --estimate-normals  the cloud has no (trusted) normals: estimate them by PCA over --normals-k K
                        neighbours (default 15) and orient them outward (as `duplexfit normals`)
       --denoise        bilateral point filter before fitting (as `duplexfit denoise`); override its
@@ -72,8 +79,12 @@ commands:
                        --denoise-iterations N; the fit then defaults to --smoothing 0.2 (paper, Fig. 9)
       --separate       baseline: fit the surface from the cloud alone and each offset surface from its
                        own offset points alone (one field each: field.dpxf, field_offsetN.dpxf)
+      --min-component F  drop mesh components smaller than F of their mesh's area (default 0: none)
+                     Every fit checks its meshes: zero-level components that carry no input point and
+                     offset components not at about |D| from the zero level are warnings, listed under
+                     "self_check" in report.json; --strict then exits with status 4.
   mesh FIELD         extract one level set of a saved field: --iso V (default 0) -o OUT.ply|obj|stl
-                     [--device SPEC] [--cell H | --resolution R]
+                     [--device SPEC] [--cell H | --resolution R] [--min-component F]
 )";
 const char* kHelpTail = R"(  --version, --help
 

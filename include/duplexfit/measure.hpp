@@ -182,6 +182,17 @@ struct OffsetReport {
 OffsetReport measureOffset(const Mesh& offset, const Mesh& surface, double delta,
                            const MeasureOptions& options = {});
 
+/// The per-component part of measureOffset (and of selfCheck, self_check.hpp): for every connected
+/// component of O, in label order (`labels` and `count` as faceComponents(offset) returns them), the
+/// distances of its vertices to S through `surface` (a BVH of S) and the off-offset rule (mean |dist − |δ||
+/// above |δ|/2). Unsorted, so that entry c belongs to label c. maxVertices > 0 measures only every k-th
+/// vertex (in index order) of a component with n > maxVertices vertices, k = ⌈n/maxVertices⌉: the means
+/// and the maximum are then over that subset (Component::vertices still counts them all).
+/// @throws InvalidArgument when the labels do not match the faces or an index is out of range.
+std::vector<OffsetReport::Component> offsetComponents(const Mesh& offset, const TriangleBvh& surface, double delta,
+                                                      const std::vector<Index>& labels, std::size_t count,
+                                                      std::size_t maxVertices = 0);
+
 // ---------------------------------------------------------------------------------------------
 // Mesh check
 

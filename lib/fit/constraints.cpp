@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <sstream>
 
 #include "duplexfit/error.hpp"
@@ -14,56 +15,115 @@ namespace duplexfit::detail {
 
 namespace {
 
+struct Companions {
+  Points positions;                    ///< kept candidates (target: the step)
+  std::vector<Eigen::Index> sources;   ///< the point each kept candidate came from
+  std::size_t candidates = 0;
+  Points medial;                       ///< rejected candidates moved onto the medial surface
+  std::vector<double> medialTargets;   ///< their signed true distances
+};
+
 // Candidates q = p_i + step·ν_i for points with a non-zero normal, kept when the nearest point p_j of P
 // other than p_i is at least |step|(1 − η) away (§3.1) and, with `sideTest`, q lies on the step's side of
 // p_j's tangent plane: sign(step)·(q − p_j)·ν_j > 0. The side test (ours, optional) rejects companions
 // that land behind the surface (e.g. from normals flipped against their neighbours', which plant a
 // spurious closed sheet outside the solid); it can also reject valid companions of coarse levels, where
-// the surface's curvature between cell centroids exceeds |step|. Returns the kept candidates and their
-// source indices.
-Points validCompanions(const Points& points, const Points& normals, const NeighborIndex& index, double step,
-                       double eta, bool sideTest, std::size_t& candidates,
-                       std::vector<Eigen::Index>* keptSources = nullptr) {
+// the surface's curvature between cell centroids exceeds |step|.
+//
+// With `medial` (ours, docs/method.md "Thin parts"), a candidate rejected by the distance test is not
+// dropped: it is moved back along its normal to the largest s ≤ |step| at which it still passes (six
+// bisection steps, in lockstep for all rejected candidates; the target is the true distance at the final
+// point whatever the step count: on eight_110k six and twelve steps gave the same offset, 4 vs 5
+// components, mean deviation 0.61% vs 0.58% of δ), i.e. onto the local medial surface of a part thinner
+// than 2|step| or the bisector of a crease, and kept with its true distance to the cloud as target, when
+// s ≥ minMedial·|step|. The δ level is then constrained exactly where the plain test leaves it free.
+Companions validCompanions(const Points& points, const Points& normals, const NeighborIndex& index, double step,
+                           double eta, bool sideTest, bool medial, double minMedial) {
+  Companions out;
   std::vector<Eigen::Index> source;
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
     if (normals.row(i).squaredNorm() > 0.0) source.push_back(i);
   }
-  candidates = source.size();
+  out.candidates = source.size();
   Points q(static_cast<Eigen::Index>(source.size()), 3);
   for (std::size_t k = 0; k < source.size(); ++k) {
     const Eigen::Index i = source[k];
     q.row(static_cast<Eigen::Index>(k)) = points.row(i) + step * normals.row(i);
   }
-  const NeighborLists nn = index.knnSearch(q, 2);
-  const double limit = std::abs(step) * (1.0 - eta);
-  std::vector<char> keep(source.size(), 0);
-  std::size_t kept = 0;
   const double sign = step > 0.0 ? 1.0 : -1.0;
-  for (std::size_t k = 0; k < source.size(); ++k) {
-    double nearestOther = std::numeric_limits<double>::infinity();
-    Eigen::Index other = -1;
-    for (auto e = nn.offsets[k]; e < nn.offsets[k + 1]; ++e) {
-      if (nn.indices[static_cast<std::size_t>(e)] != source[k]) {
-        nearestOther = nn.distances[static_cast<std::size_t>(e)];
-        other = nn.indices[static_cast<std::size_t>(e)];
-        break;
+  // Distance from each query row of `qs` to its nearest point other than its source (and that point).
+  auto nearestOther = [&](const Points& qs, const std::vector<Eigen::Index>& src, std::vector<double>& dist,
+                          std::vector<Eigen::Index>& other) {
+    const NeighborLists nn = index.knnSearch(qs, 2);
+    dist.assign(src.size(), std::numeric_limits<double>::infinity());
+    other.assign(src.size(), -1);
+    for (std::size_t k = 0; k < src.size(); ++k) {
+      for (auto e = nn.offsets[k]; e < nn.offsets[k + 1]; ++e) {
+        if (nn.indices[static_cast<std::size_t>(e)] != src[k]) {
+          dist[k] = nn.distances[static_cast<std::size_t>(e)];
+          other[k] = nn.indices[static_cast<std::size_t>(e)];
+          break;
+        }
       }
     }
-    bool ok = nearestOther >= limit;
-    if (sideTest && ok && other >= 0 && normals.row(other).squaredNorm() > 0.0) {
-      ok = sign * (q.row(static_cast<Eigen::Index>(k)) - points.row(other)).dot(normals.row(other)) > 0.0;
+  };
+  std::vector<double> dist;
+  std::vector<Eigen::Index> other;
+  nearestOther(q, source, dist, other);
+  const double limit = std::abs(step) * (1.0 - eta);
+  std::vector<char> keep(source.size(), 0);
+  std::vector<std::size_t> rejected;
+  for (std::size_t k = 0; k < source.size(); ++k) {
+    bool ok = dist[k] >= limit;
+    if (!ok) rejected.push_back(k);
+    if (sideTest && ok && other[k] >= 0 && normals.row(other[k]).squaredNorm() > 0.0) {
+      ok = sign * (q.row(static_cast<Eigen::Index>(k)) - points.row(other[k])).dot(normals.row(other[k])) > 0.0;
     }
     keep[k] = ok ? 1 : 0;
-    kept += static_cast<std::size_t>(keep[k]);
   }
-  Points out(static_cast<Eigen::Index>(kept), 3);
-  Eigen::Index r = 0;
-  if (keptSources != nullptr) keptSources->clear();
   for (std::size_t k = 0; k < source.size(); ++k) {
     if (keep[k] == 0) continue;
-    out.row(r++) = q.row(static_cast<Eigen::Index>(k));
-    if (keptSources != nullptr) keptSources->push_back(source[k]);
+    out.sources.push_back(source[k]);
   }
+  out.positions.resize(static_cast<Eigen::Index>(out.sources.size()), 3);
+  for (std::size_t k = 0, r = 0; k < source.size(); ++k) {
+    if (keep[k] != 0) out.positions.row(static_cast<Eigen::Index>(r++)) = q.row(static_cast<Eigen::Index>(k));
+  }
+  if (!medial || rejected.empty()) return out;
+
+  // Bisection on s ∈ [0, |step|] for the rejected ones: pass(s) = nearest other ≥ s(1 − η).
+  const std::size_t m = rejected.size();
+  std::vector<double> lo(m, 0.0), hi(m, std::abs(step));
+  std::vector<Eigen::Index> src(m);
+  for (std::size_t r = 0; r < m; ++r) src[r] = source[rejected[r]];
+  Points mq(static_cast<Eigen::Index>(m), 3);
+  for (int iteration = 0; iteration < 6; ++iteration) {
+    for (std::size_t r = 0; r < m; ++r) {
+      const double s = 0.5 * (lo[r] + hi[r]);
+      mq.row(static_cast<Eigen::Index>(r)) = points.row(src[r]) + sign * s * normals.row(src[r]);
+    }
+    nearestOther(mq, src, dist, other);
+    for (std::size_t r = 0; r < m; ++r) {
+      const double s = 0.5 * (lo[r] + hi[r]);
+      (dist[r] >= s * (1.0 - eta) ? lo[r] : hi[r]) = s;
+    }
+  }
+  for (std::size_t r = 0; r < m; ++r) {
+    mq.row(static_cast<Eigen::Index>(r)) = points.row(src[r]) + sign * lo[r] * normals.row(src[r]);
+  }
+  nearestOther(mq, src, dist, other);
+  std::vector<Eigen::Vector3d> pos;
+  for (std::size_t r = 0; r < m; ++r) {
+    if (!(lo[r] >= minMedial * std::abs(step)) || lo[r] <= 0.0) continue;
+    if (sideTest && other[r] >= 0 && normals.row(other[r]).squaredNorm() > 0.0 &&
+        !(sign * (mq.row(static_cast<Eigen::Index>(r)) - points.row(other[r])).dot(normals.row(other[r])) > 0.0)) {
+      continue;
+    }
+    pos.push_back(mq.row(static_cast<Eigen::Index>(r)).transpose());
+    out.medialTargets.push_back(sign * std::min(lo[r], dist[r]));
+  }
+  out.medial.resize(static_cast<Eigen::Index>(pos.size()), 3);
+  for (std::size_t r = 0; r < pos.size(); ++r) out.medial.row(static_cast<Eigen::Index>(r)) = pos[r].transpose();
   return out;
 }
 
@@ -87,8 +147,9 @@ std::vector<double> worldOffsets(const std::vector<double>& offsets, bool relati
 Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta, bool sideTest,
                          std::vector<Eigen::Index>& sources) {
   const NeighborIndex index(points);
-  std::size_t candidates = 0;
-  return validCompanions(points, normals, index, step, eta, sideTest, candidates, &sources);
+  Companions c = validCompanions(points, normals, index, step, eta, sideTest, false, 0.0);
+  sources = std::move(c.sources);
+  return std::move(c.positions);
 }
 
 LevelConstraints buildConstraints(const Points& points, const Points& normals, const ConstraintOptions& options) {
@@ -100,36 +161,52 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   }
   const NeighborIndex index(points);
 
+  // Blocks in priority order (surface, offsets, off-surface, then the medial points of both); each row
+  // has its own target.
   std::vector<Points> blocks;
-  std::vector<double> blockTargets;
+  std::vector<Eigen::VectorXd> blockTargets;
   Points surface(static_cast<Eigen::Index>(surfaceRows.size()), 3);
   for (std::size_t k = 0; k < surfaceRows.size(); ++k) surface.row(static_cast<Eigen::Index>(k)) = points.row(surfaceRows[k]);
+  blockTargets.push_back(Eigen::VectorXd::Zero(surface.rows()));
   blocks.push_back(std::move(surface));
-  blockTargets.push_back(0.0);
   out.surface = surfaceRows.size();
 
+  std::vector<Points> medialBlocks;
+  std::vector<Eigen::VectorXd> medialTargets;
+  auto addMedial = [&](Companions& c) {
+    medialTargets.push_back(Eigen::Map<const Eigen::VectorXd>(c.medialTargets.data(),
+                                                              static_cast<Eigen::Index>(c.medialTargets.size())));
+    medialBlocks.push_back(std::move(c.medial));
+    return static_cast<std::size_t>(medialBlocks.back().rows());
+  };
   for (const double delta : options.offsets) {
-    std::size_t candidates = 0;
-    blocks.push_back(validCompanions(points, normals, index, delta, options.validityTolerance, options.tangentSideTest,
-                                     candidates));
-    blockTargets.push_back(delta);
-    out.offsetCandidates.push_back(candidates);
-    out.offsetKept.push_back(static_cast<std::size_t>(blocks.back().rows()));
+    Companions c = validCompanions(points, normals, index, delta, options.validityTolerance, options.tangentSideTest,
+                                   options.medial, options.minMedialFraction);
+    blockTargets.push_back(Eigen::VectorXd::Constant(c.positions.rows(), delta));
+    out.offsetCandidates.push_back(c.candidates);
+    out.offsetKept.push_back(static_cast<std::size_t>(c.positions.rows()));
+    blocks.push_back(std::move(c.positions));
+    out.offsetMedial.push_back(addMedial(c));
   }
   const double d = options.offSurfaceDistance;
   std::vector<int> sides;
   if (options.offSurfaceSide == 2) sides = {-1, 1};
   else if (options.offSurfaceSide != 0) sides = {options.offSurfaceSide};
   for (const int side : sides) {
-    std::size_t candidates = 0;
-    blocks.push_back(validCompanions(points, normals, index, side * d, options.validityTolerance, options.tangentSideTest,
-                                    candidates));
-    blockTargets.push_back(side * d);
-    out.offSurfaceCandidates += candidates;
-    out.offSurfaceKept += static_cast<std::size_t>(blocks.back().rows());
+    Companions c = validCompanions(points, normals, index, side * d, options.validityTolerance, options.tangentSideTest,
+                                   options.medial, options.minMedialFraction);
+    blockTargets.push_back(Eigen::VectorXd::Constant(c.positions.rows(), side * d));
+    out.offSurfaceCandidates += c.candidates;
+    out.offSurfaceKept += static_cast<std::size_t>(c.positions.rows());
+    blocks.push_back(std::move(c.positions));
+    out.offSurfaceMedial += addMedial(c);
+  }
+  for (std::size_t b = 0; b < medialBlocks.size(); ++b) {
+    blocks.push_back(std::move(medialBlocks[b]));
+    blockTargets.push_back(std::move(medialTargets[b]));
   }
 
-  // Stack in priority order (surface, offsets, off-surface), then drop centres that lie within the merge
+  // Stack in priority order, then drop centres that lie within the merge
   // distance of an earlier kept one.
   Eigen::Index total = 0;
   for (const Points& b : blocks) total += b.rows();
@@ -139,7 +216,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   Eigen::Index row = 0;
   for (std::size_t b = 0; b < blocks.size(); ++b) {
     all.middleRows(row, blocks[b].rows()) = blocks[b];
-    targets.segment(row, blocks[b].rows()).setConstant(blockTargets[b]);
+    targets.segment(row, blocks[b].rows()) = blockTargets[b];
     for (Eigen::Index i = 0; i < blocks[b].rows(); ++i) blockOf[static_cast<std::size_t>(row + i)] = static_cast<int>(b);
     row += blocks[b].rows();
   }

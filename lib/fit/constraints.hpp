@@ -1,5 +1,6 @@
 // The centres of one level (algorithm.md §3): surface points (target 0), offset points q = p + δν kept by
-// the validity test (target δ), off-surface points (target ±d_k), merged where closer than 1e-6 σ_k.
+// the validity test (target δ), off-surface points (target ±d_k), merged where closer than mergeDistance·σ_k; optionally (medial) the rejected companions moved onto the
+// medial surface with their true distance as target.
 #pragma once
 
 #include <vector>
@@ -20,6 +21,9 @@ struct ConstraintOptions {
   bool dropZeroNormalPoints = false;
   /// Also reject a companion q on the wrong side of its nearest other point's tangent plane (FitOptions::sideTest).
   bool tangentSideTest = false;
+  /// Move companions rejected by the distance test onto the medial surface (FitOptions::medialConstraints).
+  bool medial = false;
+  double minMedialFraction = 0.1;  ///< ... kept when moved back to at least this fraction of the step
 };
 
 struct LevelConstraints {
@@ -28,6 +32,8 @@ struct LevelConstraints {
   std::size_t surface = 0;
   std::vector<std::size_t> offsetCandidates, offsetKept;
   std::size_t offSurfaceCandidates = 0, offSurfaceKept = 0;
+  std::vector<std::size_t> offsetMedial;  ///< per offset: rejected candidates kept on the medial surface
+  std::size_t offSurfaceMedial = 0;
   std::size_t merged = 0;
   /// Rows of `centres` that are valid offset points of offset j (for E_δ), per offset.
   std::vector<std::vector<Eigen::Index>> offsetRows;

@@ -6,13 +6,18 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <sstream>
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/wendland.hpp"
+#include "duplexfit/neighbors.hpp"
+#include "duplexfit/winding.hpp"
+#include "fit/anchors.hpp"
 #include "fit/constraints.hpp"
 #include "fit/hierarchy.hpp"
+#include "spatial/disk_distance.hpp"
 
 namespace duplexfit {
 
@@ -39,6 +44,11 @@ void checkOptions(const FitOptions& o) {
     if (!std::isfinite(d)) bad("offsets must be finite");
   }
 }
+
+// A level's report plus its solved weights (moved into the field).
+struct LevelWork : LevelReport {
+  Eigen::VectorXd weights;
+};
 
 }  // namespace
 
@@ -89,12 +99,69 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   rep.levels = levels;
   rep.secondsHierarchy = since(t);
 
+  // Sign anchors: the winding number of the input cloud (outward normals) and an index for distances.
+  std::unique_ptr<WindingNumber> winding;
+  std::unique_ptr<NeighborIndex> inputIndex;
+  double spacing = 0.0;
+  const int lastAnchorLevel = options.signAnchors ? levels - std::max(0, options.anchorSkipFinest) : 0;
+  if (lastAnchorLevel >= 1) {
+    t = Clock::now();
+    report(progress, {"hierarchy", 0, 0, 0, 0.0, "winding number"});
+    const Points outwardNormals = -nu;
+    winding = std::make_unique<WindingNumber>(u, outwardNormals);
+    inputIndex = std::make_unique<NeighborIndex>(u);
+    std::vector<double> a(winding->areas().data(), winding->areas().data() + winding->areas().size());
+    std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(a.size() / 2), a.end());
+    spacing = std::sqrt(std::max(0.0, a[a.size() / 2]));
+    rep.secondsWinding = since(t);
+  }
+  double maxOffset = 0.0;
+  for (const double d : deltas) maxOffset = std::max(maxOffset, std::abs(d));
+  Eigen::AlignedBox3d anchorBox(box.min, box.max);
+  anchorBox.min().array() -= 0.1 + maxOffset;
+  anchorBox.max().array() += 0.1 + maxOffset;
+
+  // Assembles Φ + λI for `centres`, solves it by PCG on the device from b, fills the level report (non-zeros,
+  // solve statistics, times) and leaves the weights in lr.weights; returns the matrix.
+  auto solveLevel = [&](const Points& centres, double sigma, double lambda, const Eigen::VectorXd& b, int k,
+                        LevelWork& lr) {
+    auto t0 = Clock::now();
+    report(progress, {"assembly", k, levels, 0, 0.0, std::to_string(centres.rows()) + " centres"});
+    CsrMatrix a = assembleWendland(centres, sigma, lambda);
+    lr.nonZeros = a.nonZeros();
+    lr.secondsAssembly = since(t0);
+
+    t0 = Clock::now();
+    report(progress, {"solve", k, levels, 0, 0.0, std::to_string(lr.nonZeros) + " non-zeros"});
+    const DeviceCsr m = DeviceCsr::upload(device, a, options.precision);
+    const DeviceVector db = DeviceVector::upload(device, b, options.precision);
+    DeviceVector x(device, static_cast<std::size_t>(b.size()), options.precision);
+    SolverOptions so = options.solver;
+    if (so.absoluteTolerance == 0.0) so.absoluteTolerance = options.levelTolerance;
+    so.progress = [&](int it, double res) {
+      if (options.solver.progress && !options.solver.progress(it, res)) return false;
+      return !progress || progress({"solve", k, levels, it, res, ""});
+    };
+    std::unique_ptr<Preconditioner> pre;
+    if (options.preconditioner == PreconditionerKind::BlockJacobi) {
+      pre = std::make_unique<BlockJacobiPreconditioner>(device, a, options.precision, options.blockSize);
+    } else {
+      pre = std::make_unique<JacobiPreconditioner>(m);
+    }
+    lr.solve = solveCg(m, db, x, so, pre.get());
+    if (lr.solve.reason == StopReason::Cancelled) throw Cancelled("fit cancelled during the level " + std::to_string(k) + " solve");
+    lr.secondsSolve = since(t0);
+    lr.weights = x.download();
+    return a;
+  };
+
   std::vector<FieldLevel> fitted;
+  std::vector<Points> finestOffsetPoints(deltas.size());  // valid offset points of level M, per offset
   bool finestIsInput = false;              // the last level solved was level M (its points are the input)
   double e0Centres = 0.0;                  // max |f| at input points that are level-M centres
   std::vector<Eigen::Index> notCentres;    // input points that are not (merged away or dropped)
   for (int k = 1; k <= levels; ++k) {
-    LevelReport lr;
+    LevelWork lr;
     lr.level = k;
     const double sigma = sigma1 / std::pow(2.0, k - 1);
     lr.sigma = sigma / norm.scale;
@@ -110,7 +177,29 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     co.mergeDistance = options.mergeDistance * sigma;
     co.dropZeroNormalPoints = options.dropZeroNormalPoints;
     co.tangentSideTest = options.sideTest;
+    co.medial = options.medialConstraints;
     detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals, co);
+    lr.offsetMedial = c.offsetMedial;
+    lr.offSurfaceMedial = c.offSurfaceMedial;
+    if (k <= lastAnchorLevel) {
+      detail::AnchorOptions ao;
+      ao.spacing = sigma / 2.0;
+      // Lower bound 3σ_k/4: at σ_k/2, anchors next to the offset band left bumps of 4.5% of δ on
+      // notched_cube_24k's inner offset (0.9% at 3σ_k/4); at σ_k the hole of thin_torus_20k refills.
+      ao.minDistance = std::max(0.75 * sigma, 3.0 * spacing);
+      ao.maxDistance = k == 1 ? 0.0 : 2.0 * sigma;
+      ao.centreClearance = sigma / 4.0;
+      const detail::Anchors an =
+          detail::levelAnchors(anchorBox, u, nu, winding->areas(), *inputIndex, *winding, c.centres, ao);
+      lr.anchorsInside = an.inside;
+      lr.anchorsOutside = an.outside;
+      lr.anchorsSkipped = an.ambiguous + an.disagreeing + an.crowded;
+      const Eigen::Index base = c.centres.rows(), extra = an.positions.rows();
+      c.centres.conservativeResize(base + extra, 3);
+      c.centres.bottomRows(extra) = an.positions;
+      c.targets.conservativeResize(base + extra);
+      c.targets.tail(extra) = an.targets;
+    }
     lr.surfacePoints = c.surface;
     lr.offsetCandidates = c.offsetCandidates;
     lr.offsetKept = c.offsetKept;
@@ -137,34 +226,9 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
       break;
     }
 
-    t = Clock::now();
-    report(progress, {"assembly", k, levels, 0, 0.0, std::to_string(lr.centres) + " centres"});
-    const CsrMatrix a = assembleWendland(c.centres, sigma, options.smoothing * k);
-    lr.nonZeros = a.nonZeros();
-    lr.secondsAssembly = since(t);
+    const CsrMatrix a = solveLevel(c.centres, sigma, options.smoothing * k, b, k, lr);
 
-    t = Clock::now();
-    report(progress, {"solve", k, levels, 0, 0.0, std::to_string(lr.nonZeros) + " non-zeros"});
-    const DeviceCsr m = DeviceCsr::upload(device, a, options.precision);
-    const DeviceVector db = DeviceVector::upload(device, b, options.precision);
-    DeviceVector x(device, static_cast<std::size_t>(b.size()), options.precision);
-    SolverOptions so = options.solver;
-    if (so.absoluteTolerance == 0.0) so.absoluteTolerance = options.levelTolerance;
-    so.progress = [&](int it, double res) {
-      if (options.solver.progress && !options.solver.progress(it, res)) return false;
-      return !progress || progress({"solve", k, levels, it, res, ""});
-    };
-    std::unique_ptr<Preconditioner> pre;
-    if (options.preconditioner == PreconditionerKind::BlockJacobi) {
-      pre = std::make_unique<BlockJacobiPreconditioner>(device, a, options.precision, options.blockSize);
-    } else {
-      pre = std::make_unique<JacobiPreconditioner>(m);
-    }
-    lr.solve = solveCg(m, db, x, so, pre.get());
-    if (lr.solve.reason == StopReason::Cancelled) throw Cancelled("fit cancelled during the level " + std::to_string(k) + " solve");
-    lr.secondsSolve = since(t);
-
-    fitted.push_back(FieldLevel{sigma, c.centres, x.download()});
+    fitted.push_back(FieldLevel{sigma, c.centres, std::move(lr.weights)});
     rep.levelReports.push_back(lr);
     if (k == levels) {
       // E_δ (§8.1) at the finest level's valid offset points: there b − A·w = t − f_M(c) exactly, so
@@ -178,13 +242,139 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
       finestIsInput = true;
       rep.eDelta.assign(deltas.size(), 0.0);
       for (std::size_t j = 0; j < deltas.size(); ++j) {
+        finestOffsetPoints[j].resize(static_cast<Eigen::Index>(c.offsetRows[j].size()), 3);
+        Eigen::Index row = 0;
         for (const Eigen::Index r : c.offsetRows[j]) {
           rep.eDelta[j] = std::max(rep.eDelta[j], std::abs(residual[r]) / norm.scale);
+          finestOffsetPoints[j].row(row++) = c.centres.row(r);
         }
       }
     }
   }
+
+  // Offset correction (docs/method.md, "Offset correction"): one extra level of small support fitted to
+  // the difference between the true distance to the samples and δ on each fitted δ level.
+  if (options.offsetCorrection && !deltas.empty() && !fitted.empty() && !rep.stoppedEarly) {
+    t = Clock::now();
+    report(progress, {"correction", 0, levels, 0, 0.0, "offset levels against the distance to the samples"});
+    OffsetCorrectionReport& cr = rep.correction;
+    double minDelta = std::numeric_limits<double>::infinity();
+    for (const double d : deltas) minDelta = std::min(minDelta, std::abs(d));
+    const Points outwardNormals = -nu;
+    const Eigen::VectorXd areas = winding ? winding->areas() : estimatePointAreas(u, outwardNormals);
+    if (spacing <= 0.0) {
+      std::vector<double> a(areas.data(), areas.data() + areas.size());
+      std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(a.size() / 2), a.end());
+      spacing = std::sqrt(std::max(0.0, a[a.size() / 2]));
+    }
+    if (!inputIndex) inputIndex = std::make_unique<NeighborIndex>(u);
+    const double sigmaC = std::min(fitted.back().sigma, 0.5 * minDelta);
+    cr.sigma = sigmaC / norm.scale;
+    if (sigmaC >= 2.0 * spacing) {
+      const ImplicitField partial(norm, -1.0, fitted, rep.offsets, bounds);
+      const FieldEvaluator evaluator(device, partial, options.precision);
+      // Start from every companion p + δν, then Newton steps onto f = δ (each step at most |δ|/4).
+      std::vector<Eigen::Index> source;
+      for (Eigen::Index i = 0; i < u.rows(); ++i) {
+        if (nu.row(i).squaredNorm() > 0.0) source.push_back(i);
+      }
+      const auto perOffset = static_cast<Eigen::Index>(source.size());
+      Points x(perOffset * static_cast<Eigen::Index>(deltas.size()), 3);
+      Eigen::VectorXd level(x.rows());
+      for (std::size_t j = 0; j < deltas.size(); ++j) {
+        for (Eigen::Index r = 0; r < perOffset; ++r) {
+          const Eigen::Index i = source[static_cast<std::size_t>(r)];
+          x.row(static_cast<Eigen::Index>(j) * perOffset + r) = u.row(i) + deltas[j] * nu.row(i);
+          level[static_cast<Eigen::Index>(j) * perOffset + r] = deltas[j];
+        }
+      }
+      auto sample = [&](const Points& xn, Eigen::VectorXd& fn, Points& g) {
+        const Points world = ((xn / norm.scale).rowwise() + norm.centre.transpose()).eval();
+        FieldSamples s = evaluator.evaluate(world, FieldDerivatives::Gradient);
+        fn = s.values * norm.scale;
+        g = std::move(s.gradients);
+      };
+      Eigen::VectorXd fn;
+      Points g;
+      for (int step = 0; step < 3; ++step) {
+        sample(x, fn, g);
+        for (Eigen::Index r = 0; r < x.rows(); ++r) {
+          const double g2 = g.row(r).squaredNorm();
+          if (!(g2 > 0.0)) continue;
+          Eigen::RowVector3d dx = (fn[r] - level[r]) / g2 * g.row(r);
+          const double len = dx.norm(), cap = 0.25 * std::abs(level[r]);
+          if (len > cap) dx *= cap / len;
+          x.row(r) -= dx;
+        }
+      }
+      sample(x, fn, g);
+      // Keep the points that reached their level on a slope (not the flat top of a ridge below δ),
+      // thinned to about half the sample spacing.
+      std::vector<Eigen::Index> keep;
+      for (Eigen::Index r = 0; r < x.rows(); ++r) {
+        if (std::abs(fn[r] - level[r]) <= 0.02 * std::abs(level[r]) && g.row(r).norm() >= 0.3) keep.push_back(r);
+      }
+      Points cx(static_cast<Eigen::Index>(keep.size()), 3);
+      for (std::size_t r = 0; r < keep.size(); ++r) cx.row(static_cast<Eigen::Index>(r)) = x.row(keep[r]);
+      std::vector<char> alive(keep.size(), 1);
+      if (!keep.empty()) {
+        const NeighborIndex ci(cx);
+        const NeighborLists close = ci.radiusSearch(cx, 0.5 * spacing);
+        for (std::size_t r = 0; r < keep.size(); ++r) {
+          for (auto e = close.offsets[r]; e < close.offsets[r + 1]; ++e) {
+            const auto j = static_cast<std::size_t>(close.indices[static_cast<std::size_t>(e)]);
+            if (j < r && alive[j] != 0) {
+              alive[r] = 0;
+              break;
+            }
+          }
+        }
+      }
+      std::vector<Eigen::Index> rows;
+      for (std::size_t r = 0; r < keep.size(); ++r) {
+        if (alive[r] != 0) rows.push_back(keep[r]);
+      }
+      Points centres(static_cast<Eigen::Index>(rows.size()), 3);
+      for (std::size_t r = 0; r < rows.size(); ++r) centres.row(static_cast<Eigen::Index>(r)) = x.row(rows[r]);
+      const Eigen::VectorXd dist = detail::diskSoupDistance(centres, u, nu, areas, *inputIndex);
+      Eigen::VectorXd b(centres.rows());
+      double sumBefore = 0.0, maxBefore = 0.0;
+      for (std::size_t r = 0; r < rows.size(); ++r) {
+        const Eigen::Index i = rows[r];
+        const double target = (level[i] > 0 ? 1.0 : -1.0) * dist[static_cast<Eigen::Index>(r)];
+        b[static_cast<Eigen::Index>(r)] = target - fn[i];
+        const double rel = std::abs(b[static_cast<Eigen::Index>(r)]) / std::abs(level[i]);
+        sumBefore += rel;
+        maxBefore = std::max(maxBefore, rel);
+      }
+      cr.points = static_cast<std::size_t>(centres.rows());
+      cr.meanBefore = rows.empty() ? 0.0 : sumBefore / static_cast<double>(rows.size());
+      cr.maxBefore = maxBefore;
+      if (centres.rows() > 0) {
+        LevelWork lw;
+        lw.level = levels + 1;
+        lw.sigma = sigmaC / norm.scale;
+        lw.centres = cr.points;
+        const CsrMatrix a = solveLevel(centres, sigmaC, 0.0, b, levels + 1, lw);
+        cr.solve = lw.solve;
+        cr.nonZeros = lw.nonZeros;
+        fitted.push_back(FieldLevel{sigmaC, std::move(centres), std::move(lw.weights)});
+        cr.applied = true;
+        finestIsInput = false;  // E_0 is evaluated again below, with the corrected field
+      }
+    }
+    cr.seconds = since(t);
+  }
   ImplicitField field(norm, -1.0, std::move(fitted), rep.offsets, bounds);
+  if (rep.correction.applied) {
+    // E_δ again at the finest level's valid offset points, now with the correction.
+    const FieldEvaluator ev(device, field, options.precision);
+    for (std::size_t j = 0; j < deltas.size(); ++j) {
+      if (finestOffsetPoints[j].rows() == 0) continue;
+      const Eigen::VectorXd v = ev.evaluateNormalized(finestOffsetPoints[j]);
+      rep.eDelta[j] = (v.array() - deltas[j]).abs().maxCoeff() / norm.scale;
+    }
+  }
 
   // E_0 (§8.1): max |f| at every input point. Those that are level-M centres have it from the final
   // residual; the others (merged away, dropped, or all of them after an early stop) are evaluated.

@@ -314,6 +314,74 @@ DistanceReport measureDistance(const Mesh& a, const Mesh& b, const MeasureOption
   return r;
 }
 
+std::vector<OffsetReport::Component> offsetComponents(const Mesh& offsetMesh, const TriangleBvh& surface,
+                                                      double delta, const std::vector<Index>& labels,
+                                                      std::size_t count, std::size_t maxVertices) {
+  if (labels.size() != static_cast<std::size_t>(offsetMesh.faces.rows())) {
+    throw InvalidArgument("offset components: " + std::to_string(labels.size()) + " labels for " +
+                          std::to_string(offsetMesh.faces.rows()) + " faces");
+  }
+  const double absDelta = std::abs(delta);
+  std::vector<Index> vertexLabel(static_cast<std::size_t>(offsetMesh.vertices.rows()), -1);
+  std::vector<OffsetReport::Component> components(count);
+  for (Eigen::Index f = 0; f < offsetMesh.faces.rows(); ++f) {
+    const Index c = labels[static_cast<std::size_t>(f)];
+    if (c < 0 || static_cast<std::size_t>(c) >= count) {
+      throw InvalidArgument("offset components: face " + std::to_string(f) + " has label " + std::to_string(c) +
+                            " (" + std::to_string(count) + " components)");
+    }
+    ++components[static_cast<std::size_t>(c)].faces;
+    for (int k = 0; k < 3; ++k) {
+      const Index v = offsetMesh.faces(f, k);
+      if (v < 0 || static_cast<std::size_t>(v) >= vertexLabel.size()) {
+        throw InvalidArgument("offset components: face " + std::to_string(f) + ": vertex index " +
+                              std::to_string(v) + " out of range (mesh has " + std::to_string(vertexLabel.size()) +
+                              " vertices)");
+      }
+      vertexLabel[static_cast<std::size_t>(v)] = c;
+    }
+  }
+  for (const Index c : vertexLabel) {
+    if (c >= 0) ++components[static_cast<std::size_t>(c)].vertices;  // vertices no face uses have none
+  }
+  // The vertices measured: all, or every k-th of a component with more than maxVertices (k = ⌈n/max⌉).
+  std::vector<std::size_t> stride(count, 1), seen(count, 0), measured(count, 0);
+  if (maxVertices > 0) {
+    for (std::size_t c = 0; c < count; ++c) stride[c] = (components[c].vertices + maxVertices - 1) / maxVertices;
+  }
+  std::vector<Eigen::Index> rows;
+  rows.reserve(vertexLabel.size());
+  for (std::size_t v = 0; v < vertexLabel.size(); ++v) {
+    const Index c = vertexLabel[v];
+    if (c < 0) continue;
+    const auto cc = static_cast<std::size_t>(c);
+    if (seen[cc]++ % std::max<std::size_t>(stride[cc], 1) == 0) rows.push_back(static_cast<Eigen::Index>(v));
+  }
+  Points queries(static_cast<Eigen::Index>(rows.size()), 3);
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    queries.row(static_cast<Eigen::Index>(i)) = offsetMesh.vertices.row(rows[i]);
+  }
+  const Eigen::VectorXd vd = surface.distances(queries);
+  for (Eigen::Index i = 0; i < vd.size(); ++i) {
+    const auto c = static_cast<std::size_t>(vertexLabel[static_cast<std::size_t>(rows[static_cast<std::size_t>(i)])]);
+    OffsetReport::Component& comp = components[c];
+    const double deviation = std::abs(vd[i] - absDelta);
+    ++measured[c];
+    comp.meanDistance += vd[i];
+    comp.meanDeviation += deviation;
+    comp.maxDeviation = std::max(comp.maxDeviation, deviation);
+  }
+  for (std::size_t c = 0; c < count; ++c) {
+    OffsetReport::Component& comp = components[c];
+    if (measured[c] > 0) {
+      comp.meanDistance /= static_cast<double>(measured[c]);
+      comp.meanDeviation /= static_cast<double>(measured[c]);
+    }
+    comp.offOffset = comp.meanDeviation > 0.5 * absDelta;
+  }
+  return components;
+}
+
 OffsetReport measureOffset(const Mesh& offsetMesh, const Mesh& surface, double delta,
                            const MeasureOptions& options) {
   checkOptions(options);
@@ -362,32 +430,8 @@ OffsetReport measureOffset(const Mesh& offsetMesh, const Mesh& surface, double d
   // Components: a piece of the offset lies at distance ≈ |δ| from S; a spurious sheet does not.
   std::size_t count = 0;
   const std::vector<Index> label = faceComponents(offsetMesh, &count);
-  std::vector<Index> vertexLabel(static_cast<std::size_t>(offsetMesh.vertices.rows()), -1);
-  r.components.assign(count, {});
-  for (Eigen::Index f = 0; f < offsetMesh.faces.rows(); ++f) {
-    const Index c = label[static_cast<std::size_t>(f)];
-    ++r.components[static_cast<std::size_t>(c)].faces;
-    for (int k = 0; k < 3; ++k) vertexLabel[static_cast<std::size_t>(offsetMesh.faces(f, k))] = c;
-  }
-  const Eigen::VectorXd vd = tree.distances(offsetMesh.vertices);
-  for (Eigen::Index v = 0; v < vd.size(); ++v) {
-    const Index c = vertexLabel[static_cast<std::size_t>(v)];
-    if (c < 0) continue;  // a vertex no face uses
-    OffsetReport::Component& comp = r.components[static_cast<std::size_t>(c)];
-    const double deviation = std::abs(vd[v] - absDelta);
-    ++comp.vertices;
-    comp.meanDistance += vd[v];
-    comp.meanDeviation += deviation;
-    comp.maxDeviation = std::max(comp.maxDeviation, deviation);
-  }
-  for (OffsetReport::Component& comp : r.components) {
-    if (comp.vertices > 0) {
-      comp.meanDistance /= static_cast<double>(comp.vertices);
-      comp.meanDeviation /= static_cast<double>(comp.vertices);
-    }
-    comp.offOffset = comp.meanDeviation > 0.5 * absDelta;
-    r.offOffsetComponents += comp.offOffset ? 1 : 0;
-  }
+  r.components = offsetComponents(offsetMesh, tree, delta, label, count);
+  for (const OffsetReport::Component& comp : r.components) r.offOffsetComponents += comp.offOffset ? 1 : 0;
   std::stable_sort(r.components.begin(), r.components.end(),
                    [](const OffsetReport::Component& a, const OffsetReport::Component& b) { return a.faces > b.faces; });
   return r;

@@ -22,6 +22,7 @@
 #pragma GCC diagnostic pop
 
 #include "duplexfit/error.hpp"
+#include "spatial/processing_order.hpp"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -174,9 +175,10 @@ void sortHits(Hit* first, Hit* last) {
   }
 }
 
-/// A spatially coherent processing order of the queries: indices sorted by the Morton code of
-/// their cell in a 1024³ grid over the queries' bounding box (LSD radix sort, three 10-bit digits).
-/// Empty (meaning the input order) below minQueries queries or beyond 2^32 − 1 of them.
+}  // namespace
+
+namespace detail {
+
 std::vector<std::uint32_t> processingOrder(const Points& queries, std::int64_t minQueries) {
   const auto q = static_cast<std::int64_t>(queries.rows());
   if (q < minQueries || q > std::numeric_limits<std::uint32_t>::max()) return {};
@@ -217,6 +219,10 @@ std::vector<std::uint32_t> processingOrder(const Points& queries, std::int64_t m
   }
   return order;
 }
+
+}  // namespace detail
+
+namespace {
 
 /// This thread's store of hits, reused across calls (see kRetainHits).
 std::vector<Hit>& threadStore() {
@@ -269,7 +275,7 @@ NeighborLists NeighborIndex::Impl::run(const Points& queries, MakeState makeStat
   // Queries are searched in Morton order, so that consecutive queries walk the same part of the
   // tree (at 3M points ~1.5x faster than an incoherent input order once the tree outgrows the
   // cache); results are still returned in input order.
-  const std::vector<std::uint32_t> order = processingOrder(queries, 4 * kQueryBlock);
+  const std::vector<std::uint32_t> order = detail::processingOrder(queries, 4 * kQueryBlock);
   const auto queryAt = [&order](std::int64_t s) {
     return order.empty() ? s : static_cast<std::int64_t>(order[static_cast<std::size_t>(s)]);
   };

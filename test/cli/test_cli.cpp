@@ -107,10 +107,19 @@ TEST_SUITE("cli") {
     ss << report.rdbuf();
     CHECK(ss.str().find("\"level_reports\"") != std::string::npos);
     CHECK(ss.str().find("\"E0\"") != std::string::npos);
+    // The self-check ran (input points tested against the zero level) and found nothing.
+    CHECK(ss.str().find("\"self_check\": {") != std::string::npos);
+    CHECK(ss.str().find("\"ok\": true") != std::string::npos);
+    CHECK(ss.str().find("\"points_checked\": true") != std::string::npos);
+    CHECK(ss.str().find("\"why\"") == std::string::npos);
 
     const Run m = cli("mesh " + (out / "field.dpxf").string() + " --iso 0.05 -o " + (dir / "half.obj").string() + " --quiet");
     CHECK(m.status == 0);
     CHECK(analyzeTopology(readMesh((dir / "half.obj").string())).components == 1);
+    const Run mc = cli("mesh " + (out / "field.dpxf").string() + " --min-component 0.01 -o " + (dir / "min.obj").string() +
+                       " --quiet");
+    CHECK(mc.status == 0);
+    CHECK(analyzeTopology(readMesh((dir / "min.obj").string())).components == 1);
 
     const Run rel = cli("fit " + input.string() + " --offset 0.1,-0.05 --offset-rel -o " + (dir / "rel").string() + " --quiet --format stl");
     CHECK(rel.status == 0);
@@ -131,6 +140,8 @@ TEST_SUITE("cli") {
     const std::string report = readBytes(out / "report.json");
     CHECK(report.find("\"mode\": \"separate\"") != std::string::npos);
     CHECK(report.find("\"fits\"") != std::string::npos);
+    CHECK(report.find("\"self_check\": {") != std::string::npos);
+    CHECK(report.find("\"ok\": true") != std::string::npos);
     // The two fields are independent: each has its own 0-level (surface radius 0.5, offset radius 0.4).
     const ImplicitField zero = ImplicitField::load((out / "field.dpxf").string());
     const ImplicitField off = ImplicitField::load((out / "field_offset1.dpxf").string());
@@ -187,6 +198,7 @@ TEST_SUITE("cli") {
     expectFitError(input, "--offset 0", {"offset"});
     expectFitError(input, "--offset 5", {"offset", "largest side"});
     expectFitError(input, "--offset abc", {"abc"});
+    expectFitError(input, "--offset 0.1 --min-component 1.5", {"min-component"});
     expectFitError(input, "", {"offset"});
     expectFitError(input, "--offset 0.1 --device no-such-device", {"no-such-device", "available devices"});
     // An output path below a regular file cannot be created.

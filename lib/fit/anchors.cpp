@@ -1,0 +1,165 @@
+// Sign anchors of one level (see anchors.hpp): cubic grid cells near enough to the samples for the level's
+// supports to matter there, far enough for the winding number to be reliable, classified inside/outside.
+#include "fit/anchors.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "duplexfit/neighbors.hpp"
+#include "duplexfit/winding.hpp"
+#include "spatial/disk_distance.hpp"
+
+namespace duplexfit::detail {
+
+Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, const Points& inwardNormals,
+                     const Eigen::VectorXd& areas, const NeighborIndex& inputIndex, const WindingNumber& winding, const Points& centres,
+                     const AnchorOptions& o) {
+  Anchors out;
+  if (!(o.spacing > 0.0) || inputPoints.rows() == 0) return out;
+  const Eigen::Vector3d extent = box.sizes();
+  Eigen::Array3i n;
+  std::size_t total = 1;
+  for (int a = 0; a < 3; ++a) {
+    const double cells = std::ceil(extent[a] / o.spacing);
+    if (!(cells < 1e6)) {
+      out.gridTooLarge = true;
+      return out;
+    }
+    n[a] = std::max(1, static_cast<int>(cells));
+    total *= static_cast<std::size_t>(n[a]);
+  }
+  if (total > o.maxCells) {
+    out.gridTooLarge = true;
+    return out;
+  }
+  // Grid centred on the box.
+  const Eigen::Vector3d lo = box.center() - 0.5 * o.spacing * n.cast<double>().matrix();
+  auto cellOf = [&](const Eigen::Vector3d& p, int a) {
+    const double t = (p[a] - lo[a]) / o.spacing;
+    return std::clamp(static_cast<int>(std::floor(t)), 0, n[a] - 1);
+  };
+  auto linear = [&](int i, int j, int k) {
+    return (static_cast<std::size_t>(k) * static_cast<std::size_t>(n[1]) + static_cast<std::size_t>(j)) *
+               static_cast<std::size_t>(n[0]) + static_cast<std::size_t>(i);
+  };
+
+  // Cells within `rings` (Chebyshev, in cells) of an occupied cell: a multi-source breadth-first search.
+  std::vector<std::uint8_t> ring(total, 255);
+  const int rings = o.maxDistance > 0.0 ? std::min(250, static_cast<int>(std::ceil(o.maxDistance / o.spacing)) + 1) : -1;
+  std::vector<std::size_t> frontier;
+  if (rings >= 0) {
+    for (Eigen::Index r = 0; r < inputPoints.rows(); ++r) {
+      const Eigen::Vector3d p = inputPoints.row(r).transpose();
+      const std::size_t c = linear(cellOf(p, 0), cellOf(p, 1), cellOf(p, 2));
+      if (ring[c] != 0) {
+        ring[c] = 0;
+        frontier.push_back(c);
+      }
+    }
+    for (int step = 1; step <= rings && !frontier.empty(); ++step) {
+      std::vector<std::size_t> next;
+      for (const std::size_t c : frontier) {
+        const int i = static_cast<int>(c % static_cast<std::size_t>(n[0]));
+        const int j = static_cast<int>((c / static_cast<std::size_t>(n[0])) % static_cast<std::size_t>(n[1]));
+        const int k = static_cast<int>(c / (static_cast<std::size_t>(n[0]) * static_cast<std::size_t>(n[1])));
+        for (int dk = -1; dk <= 1; ++dk) {
+          for (int dj = -1; dj <= 1; ++dj) {
+            for (int di = -1; di <= 1; ++di) {
+              const int ii = i + di, jj = j + dj, kk = k + dk;
+              if (ii < 0 || jj < 0 || kk < 0 || ii >= n[0] || jj >= n[1] || kk >= n[2]) continue;
+              const std::size_t m = linear(ii, jj, kk);
+              if (ring[m] == 255) {
+                ring[m] = static_cast<std::uint8_t>(step);
+                next.push_back(m);
+              }
+            }
+          }
+        }
+      }
+      frontier.swap(next);
+    }
+  }
+  std::vector<Eigen::Vector3d> cand;
+  for (int k = 0; k < n[2]; ++k) {
+    for (int j = 0; j < n[1]; ++j) {
+      for (int i = 0; i < n[0]; ++i) {
+        if (rings >= 0 && ring[linear(i, j, k)] == 255) continue;
+        cand.push_back(lo + o.spacing * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5));
+      }
+    }
+  }
+  Points q(static_cast<Eigen::Index>(cand.size()), 3);
+  for (std::size_t r = 0; r < cand.size(); ++r) q.row(static_cast<Eigen::Index>(r)) = cand[r].transpose();
+
+  // Distance band.
+  const int kAgree = std::max(1, std::min<int>(o.agreeNeighbors, static_cast<int>(inputPoints.rows())));
+  const NeighborLists near = inputIndex.knnSearch(q, kAgree);
+  std::vector<Eigen::Index> band;
+  std::vector<double> bandDistance;
+  for (Eigen::Index r = 0; r < q.rows(); ++r) {
+    const auto ur = static_cast<std::size_t>(r);
+    if (near.count(ur) == 0) continue;
+    const double d = near.distances[static_cast<std::size_t>(near.offsets[ur])];
+    if (d < o.minDistance || (o.maxDistance > 0.0 && d > o.maxDistance)) continue;
+    band.push_back(r);
+    bandDistance.push_back(d);
+  }
+  out.candidates = band.size();
+  if (band.empty()) return out;
+  Points bq(static_cast<Eigen::Index>(band.size()), 3);
+  for (std::size_t r = 0; r < band.size(); ++r) bq.row(static_cast<Eigen::Index>(r)) = q.row(band[r]);
+
+  std::vector<char> clear(band.size(), 1);
+  if (centres.rows() > 0 && o.centreClearance > 0.0) {
+    const NeighborIndex centreIndex(centres);
+    const NeighborLists nc = centreIndex.knnSearch(bq, 1);
+    for (std::size_t r = 0; r < band.size(); ++r) {
+      if (nc.count(r) > 0 && nc.distances[static_cast<std::size_t>(nc.offsets[r])] < o.centreClearance) clear[r] = 0;
+    }
+  }
+  const Eigen::VectorXd w = winding.evaluate(bq);
+  const Eigen::VectorXd disk = diskSoupDistance(bq, inputPoints, inwardNormals, areas, inputIndex);
+
+  std::vector<Eigen::Vector3d> pos;
+  std::vector<double> target;
+  for (std::size_t r = 0; r < band.size(); ++r) {
+    if (clear[r] == 0) {
+      ++out.crowded;
+      continue;
+    }
+    const double wr = w[static_cast<Eigen::Index>(r)];
+    if (wr > o.ambiguity && wr < 1.0 - o.ambiguity) {
+      ++out.ambiguous;
+      continue;
+    }
+    const bool inside = wr >= 0.5;
+    // The nearest samples' tangent planes: (c − p)·ν > 0 puts c on the inner side of p.
+    const std::size_t qr = static_cast<std::size_t>(band[r]);
+    int agree = 0, votes = 0;
+    for (auto e = near.offsets[qr]; e < near.offsets[qr + 1]; ++e) {
+      const Index j = near.indices[static_cast<std::size_t>(e)];
+      if (inwardNormals.row(j).squaredNorm() == 0.0) continue;
+      const double s = (bq.row(static_cast<Eigen::Index>(r)) - inputPoints.row(j)).dot(inwardNormals.row(j));
+      ++votes;
+      agree += (s > 0.0) == inside ? 1 : 0;
+    }
+    if (votes > 0 && agree == 0) {
+      ++out.disagreeing;
+      continue;
+    }
+    (inside ? out.inside : out.outside) += 1;
+    pos.push_back(bq.row(static_cast<Eigen::Index>(r)).transpose());
+    target.push_back((inside ? 1.0 : -1.0) * std::min(disk[static_cast<Eigen::Index>(r)], o.clamp));
+  }
+  out.positions.resize(static_cast<Eigen::Index>(pos.size()), 3);
+  out.targets.resize(static_cast<Eigen::Index>(pos.size()));
+  for (std::size_t r = 0; r < pos.size(); ++r) {
+    out.positions.row(static_cast<Eigen::Index>(r)) = pos[r].transpose();
+    out.targets[static_cast<Eigen::Index>(r)] = target[r];
+  }
+  return out;
+}
+
+}  // namespace duplexfit::detail

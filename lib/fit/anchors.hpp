@@ -1,0 +1,51 @@
+// Sign anchors (docs/method.md, "Sign of empty space"): centres in empty space whose target is the signed
+// distance to the cloud, the sign taken from the cloud's generalized winding number. They keep coarse
+// levels, whose supports span holes and cavities, from lifting f above 0 where nothing was sampled.
+#pragma once
+
+#include <cstddef>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "duplexfit/types.hpp"
+
+namespace duplexfit {
+class NeighborIndex;
+class WindingNumber;
+}  // namespace duplexfit
+
+namespace duplexfit::detail {
+
+struct AnchorOptions {
+  double spacing = 0.0;      ///< grid spacing of the candidates (normalised units)
+  double minDistance = 0.0;  ///< a candidate must be at least this far from every input point
+  double maxDistance = 0.0;  ///< ... and at most this far (<= 0: no upper limit)
+  double centreClearance = 0.0;  ///< ... and this far from every other centre of the level
+  double clamp = 1.0;        ///< |target| = min(disk-soup distance, clamp)
+  double ambiguity = 0.25;   ///< skip when |w − 0.5| < 0.5 − ambiguity (w in (ambiguity, 1 − ambiguity))
+  int agreeNeighbors = 8;    ///< skip when all these nearest samples put the candidate on the other side
+  std::size_t maxCells = std::size_t{1} << 24;  ///< larger grids are not scanned (the level gets none)
+};
+
+struct Anchors {
+  Points positions;
+  Eigen::VectorXd targets;
+  std::size_t candidates = 0;  ///< grid cells within the distance band
+  std::size_t inside = 0, outside = 0;
+  std::size_t ambiguous = 0;   ///< winding number too close to 1/2
+  std::size_t disagreeing = 0; ///< the nearest samples unanimously contradict the winding number
+  std::size_t crowded = 0;     ///< too close to another centre of the level
+  bool gridTooLarge = false;
+};
+
+/// Anchors on a cubic grid over `box`: `inputIndex` indexes the input points (normalised) with inward
+/// normals `inwardNormals` and point areas `areas`; `winding` is their winding number; `centres` the
+/// level's other centres. Targets are the disk-soup distance (spatial/disk_distance.hpp): the distance to
+/// the nearest sample overestimates the distance to the surface by up to spacing²/(8d), and as noise
+/// between neighbouring anchors it left bumps of 6% of δ on notched_cube_24k's offset.
+Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, const Points& inwardNormals,
+                     const Eigen::VectorXd& areas, const NeighborIndex& inputIndex, const WindingNumber& winding, const Points& centres,
+                     const AnchorOptions& options);
+
+}  // namespace duplexfit::detail

@@ -1,0 +1,341 @@
+// The self-check of a fit's meshes (self_check.hpp): input points landing on each zero-level component
+// (exact closest points on the triangle BVH), offset components against the zero-level mesh
+// (offsetComponents, the rule of `measure --offset-of`), and the removal of small components.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/measure.hpp"
+#include "duplexfit/neighbors.hpp"
+#include "duplexfit/self_check.hpp"
+#include "spatial/processing_order.hpp"
+
+namespace duplexfit {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double triangleArea(const Mesh& m, Eigen::Index f) {
+  const Eigen::Vector3d a = m.vertices.row(m.faces(f, 0)).transpose();
+  const Eigen::Vector3d b = m.vertices.row(m.faces(f, 1)).transpose();
+  const Eigen::Vector3d c = m.vertices.row(m.faces(f, 2)).transpose();
+  return 0.5 * (b - a).cross(c - a).norm();
+}
+
+/// Size and extent of every component of a mesh, in label order.
+struct ComponentStats {
+  std::size_t faces = 0, vertices = 0;
+  double area = 0.0;
+  Eigen::AlignedBox3d box;
+};
+
+struct Components {
+  std::vector<Index> labels;  ///< per face
+  std::vector<ComponentStats> stats;
+  double area = 0.0;          ///< whole mesh
+};
+
+Components components(const Mesh& mesh) {
+  Components c;
+  std::size_t count = 0;
+  c.labels = faceComponents(mesh, &count);  // checks the indices
+  c.stats.assign(count, {});
+  std::vector<Index> vertexLabel(static_cast<std::size_t>(mesh.vertices.rows()), -1);
+  for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
+    const auto l = static_cast<std::size_t>(c.labels[static_cast<std::size_t>(f)]);
+    ComponentStats& s = c.stats[l];
+    ++s.faces;
+    const double a = triangleArea(mesh, f);
+    s.area += a;
+    c.area += a;
+    for (int k = 0; k < 3; ++k) {
+      const auto v = static_cast<std::size_t>(mesh.faces(f, k));
+      if (vertexLabel[v] >= 0) continue;
+      vertexLabel[v] = static_cast<Index>(l);
+      ++s.vertices;
+      s.box.extend(mesh.vertices.row(static_cast<Eigen::Index>(v)).transpose());
+    }
+  }
+  return c;
+}
+
+void checkFraction(double minAreaFraction) {
+  if (!(std::isfinite(minAreaFraction) && minAreaFraction >= 0.0 && minAreaFraction < 1.0)) {
+    throw InvalidArgument("minimum component area fraction must be in [0, 1) (got " +
+                          std::to_string(minAreaFraction) + ")");
+  }
+}
+
+double meanEdgeLength(const Mesh& m) {
+  double sum = 0.0;
+  for (Eigen::Index f = 0; f < m.faces.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      sum += (m.vertices.row(m.faces(f, k)) - m.vertices.row(m.faces(f, (k + 1) % 3))).norm();
+    }
+  }
+  return m.faces.rows() > 0 ? sum / (3.0 * static_cast<double>(m.faces.rows())) : 0.0;
+}
+
+/// Which components of the zero-level mesh have an input point within `tol` of their triangles. Each round
+/// credits, for every point, the component nearest to it among those not yet credited (when it is within
+/// tol), on a BVH of those components only; a round that credits none ends it, since then no point is
+/// within tol of any remaining component. One closest-point query per point is enough when every component
+/// carries points (the usual case), and later rounds run on the few faces left.
+std::vector<char> componentsWithPoints(const Mesh& mesh, const TriangleBvh& tree, const std::vector<Index>& labels,
+                                       std::size_t count, const Points& points, double tol) {
+  std::vector<char> carried(count, 0);
+  std::optional<TriangleBvh> remainingTree;
+  std::vector<Index> remainingLabels;  // per face of remainingTree
+  const TriangleBvh* current = &tree;
+  const std::vector<Index>* currentLabels = &labels;
+  const auto n = static_cast<long long>(points.rows());
+  // Points in Morton order, so that each query's hint (the previous closest face) is a tight start.
+  const std::vector<std::uint32_t> order = detail::processingOrder(points, 2);  // empty: the input order
+  while (true) {
+    std::vector<char> credit(count, 0);
+    const TriangleBvh& t = *current;
+    const std::vector<Index>& l = *currentLabels;
+#pragma omp parallel default(none) shared(t, l, points, order, credit, n, tol)
+    {
+      std::int64_t hint = -1;
+#pragma omp for schedule(dynamic, 256)
+      for (long long i = 0; i < n; ++i) {
+        const auto row = static_cast<Eigen::Index>(order.empty() ? i : order[static_cast<std::size_t>(i)]);
+        const ClosestPoint cp = t.closest(points.row(row).transpose(), hint);
+        if (cp.face < 0 || !(cp.distance <= tol)) continue;
+        const auto c = static_cast<std::size_t>(l[static_cast<std::size_t>(cp.face)]);
+#pragma omp atomic write
+        credit[c] = 1;
+      }
+    }
+    bool credited = false, remaining = false;
+    for (std::size_t c = 0; c < count; ++c) {
+      credited = credited || credit[c] != 0;
+      carried[c] = static_cast<char>(carried[c] != 0 || credit[c] != 0);
+      remaining = remaining || carried[c] == 0;
+    }
+    if (!credited || !remaining) break;
+    Mesh rest;
+    rest.vertices = mesh.vertices;
+    std::vector<Eigen::Index> rows;
+    for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
+      if (!carried[static_cast<std::size_t>(labels[static_cast<std::size_t>(f)])]) rows.push_back(f);
+    }
+    rest.faces.resize(static_cast<Eigen::Index>(rows.size()), 3);
+    remainingLabels.resize(rows.size());
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      rest.faces.row(static_cast<Eigen::Index>(i)) = mesh.faces.row(rows[i]);
+      remainingLabels[i] = labels[static_cast<std::size_t>(rows[i])];
+    }
+    remainingTree.emplace(rest);
+    current = &*remainingTree;
+    currentLabels = &remainingLabels;
+  }
+  return carried;
+}
+
+ComponentIssue makeIssue(int surface, double iso, std::size_t label, const ComponentStats& s, double meshArea,
+                         ComponentIssue::Why why) {
+  ComponentIssue issue;
+  issue.surface = surface;
+  issue.iso = iso;
+  issue.component = label;
+  issue.faces = s.faces;
+  issue.vertices = s.vertices;
+  issue.area = s.area;
+  issue.areaFraction = meshArea > 0.0 ? s.area / meshArea : 0.0;
+  issue.box = s.box;
+  issue.why = why;
+  return issue;
+}
+
+}  // namespace
+
+const char* componentIssueName(ComponentIssue::Why why) noexcept {
+  switch (why) {
+    case ComponentIssue::Why::NoInputPoints: return "no_input_points";
+    case ComponentIssue::Why::OffOffset: return "off_offset";
+  }
+  return "unknown";
+}
+
+Mesh dropSmallComponents(const Mesh& mesh, double minAreaFraction, DroppedComponents* dropped) {
+  checkFraction(minAreaFraction);
+  if (dropped != nullptr) *dropped = {};
+  if (minAreaFraction == 0.0 || mesh.faces.rows() == 0) return mesh;
+  const Components c = components(mesh);
+  std::size_t largest = 0;
+  for (std::size_t l = 1; l < c.stats.size(); ++l) {
+    if (c.stats[l].area > c.stats[largest].area) largest = l;
+  }
+  std::vector<char> keep(c.stats.size(), 1);
+  DroppedComponents d;
+  for (std::size_t l = 0; l < c.stats.size(); ++l) {
+    if (l == largest || !(c.stats[l].area < minAreaFraction * c.area)) continue;
+    keep[l] = 0;
+    ++d.components;
+    d.faces += c.stats[l].faces;
+    d.vertices += c.stats[l].vertices;
+    d.area += c.stats[l].area;
+  }
+  d.areaFraction = c.area > 0.0 ? d.area / c.area : 0.0;
+  if (dropped != nullptr) *dropped = d;
+  if (d.components == 0) return mesh;
+
+  std::vector<Index> remap(static_cast<std::size_t>(mesh.vertices.rows()), -1);
+  Eigen::Index keptFaces = 0;
+  for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
+    if (!keep[static_cast<std::size_t>(c.labels[static_cast<std::size_t>(f)])]) continue;
+    ++keptFaces;
+    for (int k = 0; k < 3; ++k) remap[static_cast<std::size_t>(mesh.faces(f, k))] = 0;
+  }
+  Index next = 0;
+  for (Index& r : remap) {
+    if (r == 0) r = next++;
+  }
+  Mesh out;
+  out.vertices.resize(next, 3);
+  for (std::size_t v = 0; v < remap.size(); ++v) {
+    if (remap[v] >= 0) out.vertices.row(remap[v]) = mesh.vertices.row(static_cast<Eigen::Index>(v));
+  }
+  out.faces.resize(keptFaces, 3);
+  Eigen::Index row = 0;
+  for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
+    if (!keep[static_cast<std::size_t>(c.labels[static_cast<std::size_t>(f)])]) continue;
+    for (int k = 0; k < 3; ++k) out.faces(row, k) = remap[static_cast<std::size_t>(mesh.faces(f, k))];
+    ++row;
+  }
+  return out;
+}
+
+SelfCheckReport selfCheck(const std::vector<Mesh>& meshes, const std::vector<double>& isos, const Points& inputPoints,
+                          const SelfCheckOptions& options) {
+  const auto start = Clock::now();
+  if (meshes.empty() || meshes.size() != isos.size()) {
+    throw InvalidArgument("self-check: " + std::to_string(meshes.size()) + " meshes for " +
+                          std::to_string(isos.size()) + " iso values (need the same number, at least one)");
+  }
+  if (isos[0] != 0.0) throw InvalidArgument("self-check: the first mesh must be the zero level (iso " +
+                                            std::to_string(isos[0]) + ")");
+  for (std::size_t j = 1; j < isos.size(); ++j) {
+    if (!std::isfinite(isos[j]) || isos[j] == 0.0) {
+      throw InvalidArgument("self-check: offset " + std::to_string(j) + " must be a non-zero number (got " +
+                            std::to_string(isos[j]) + ")");
+    }
+  }
+  if (!(std::isfinite(options.pointTolerance) && options.pointTolerance >= 0.0)) {
+    throw InvalidArgument("self-check: pointTolerance must be finite and >= 0");
+  }
+  if (!(std::isfinite(options.pointToleranceEdges) && options.pointToleranceEdges > 0.0)) {
+    throw InvalidArgument("self-check: pointToleranceEdges must be finite and > 0");
+  }
+  checkFraction(options.minAreaFraction);
+
+  SelfCheckReport r;
+  r.minAreaFraction = options.minAreaFraction;
+  const Mesh& zero = meshes[0];
+  std::vector<Components> comps;
+  comps.reserve(meshes.size());
+  for (std::size_t i = 0; i < meshes.size(); ++i) {
+    comps.push_back(components(meshes[i]));
+    SurfaceSelfCheck s;
+    s.surface = static_cast<int>(i);
+    s.iso = isos[i];
+    s.faces = static_cast<std::size_t>(meshes[i].faces.rows());
+    s.components = comps.back().stats.size();
+    s.area = comps.back().area;
+    r.surfaces.push_back(s);
+  }
+  std::optional<TriangleBvh> zeroTree;
+  if (zero.faces.rows() > 0) zeroTree.emplace(zero);
+
+  // The zero level: every component must carry input points.
+  if (zeroTree && inputPoints.rows() > 0) {
+    r.pointsChecked = true;
+    r.pointTolerance =
+        options.pointTolerance > 0.0 ? options.pointTolerance : options.pointToleranceEdges * meanEdgeLength(zero);
+    const Components& c = comps[0];
+    const std::vector<char> carried =
+        componentsWithPoints(zero, *zeroTree, c.labels, c.stats.size(), inputPoints, r.pointTolerance);
+    std::vector<std::size_t> empty;
+    for (std::size_t l = 0; l < carried.size(); ++l) {
+      if (!carried[l]) empty.push_back(l);
+    }
+    if (!empty.empty()) {
+      // How far the nearest input point is, from the vertices of each empty component.
+      std::vector<char> isEmpty(c.stats.size(), 0);
+      for (std::size_t l : empty) isEmpty[l] = 1;
+      std::vector<Index> vertexLabel(static_cast<std::size_t>(zero.vertices.rows()), -1);
+      for (Eigen::Index f = 0; f < zero.faces.rows(); ++f) {
+        const Index l = c.labels[static_cast<std::size_t>(f)];
+        if (!isEmpty[static_cast<std::size_t>(l)]) continue;
+        for (int k = 0; k < 3; ++k) vertexLabel[static_cast<std::size_t>(zero.faces(f, k))] = l;
+      }
+      std::vector<Eigen::Index> rows;
+      for (std::size_t v = 0; v < vertexLabel.size(); ++v) {
+        if (vertexLabel[v] >= 0) rows.push_back(static_cast<Eigen::Index>(v));
+      }
+      Points queries(static_cast<Eigen::Index>(rows.size()), 3);
+      for (std::size_t i = 0; i < rows.size(); ++i) {
+        queries.row(static_cast<Eigen::Index>(i)) = zero.vertices.row(rows[i]);
+      }
+      const NeighborLists nearest = NeighborIndex(inputPoints).knnSearch(queries, 1);
+      std::vector<double> best(c.stats.size(), std::numeric_limits<double>::infinity());
+      for (std::size_t i = 0; i < rows.size(); ++i) {
+        if (nearest.count(i) == 0) continue;
+        const auto l = static_cast<std::size_t>(vertexLabel[static_cast<std::size_t>(rows[i])]);
+        best[l] = std::min(best[l], nearest.distances[static_cast<std::size_t>(nearest.offsets[i])]);
+      }
+      for (std::size_t l : empty) {
+        ComponentIssue issue = makeIssue(0, 0.0, l, c.stats[l], c.area, ComponentIssue::Why::NoInputPoints);
+        issue.nearestInputPoint = best[l];
+        r.issues.push_back(issue);
+      }
+    }
+  }
+
+  // The offsets: every component must lie at about |δ_j| from the zero level.
+  for (std::size_t j = 1; j < meshes.size(); ++j) {
+    const Components& c = comps[j];
+    if (c.stats.empty()) continue;
+    std::vector<OffsetReport::Component> measured;
+    if (zeroTree) {
+      measured = offsetComponents(meshes[j], *zeroTree, isos[j], c.labels, c.stats.size(), options.offsetVertexSamples);
+    }
+    for (std::size_t l = 0; l < c.stats.size(); ++l) {
+      if (zeroTree && !measured[l].offOffset) continue;
+      ComponentIssue issue =
+          makeIssue(static_cast<int>(j), isos[j], l, c.stats[l], c.area, ComponentIssue::Why::OffOffset);
+      issue.meanDistance = zeroTree ? measured[l].meanDistance : std::numeric_limits<double>::infinity();
+      issue.meanDeviation = zeroTree ? measured[l].meanDeviation : std::numeric_limits<double>::infinity();
+      r.issues.push_back(issue);
+    }
+  }
+  for (const ComponentIssue& issue : r.issues) ++r.surfaces[static_cast<std::size_t>(issue.surface)].issues;
+  r.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  return r;
+}
+
+SelfCheckReport cleanAndSelfCheck(std::vector<Mesh>& meshes, const std::vector<double>& isos, const Points& inputPoints,
+                                  const SelfCheckOptions& options) {
+  const auto start = Clock::now();
+  checkFraction(options.minAreaFraction);
+  std::vector<DroppedComponents> dropped(meshes.size());
+  if (options.minAreaFraction > 0.0) {
+    for (std::size_t i = 0; i < meshes.size(); ++i) {
+      meshes[i] = dropSmallComponents(meshes[i], options.minAreaFraction, &dropped[i]);
+    }
+  }
+  SelfCheckReport r = selfCheck(meshes, isos, inputPoints, options);
+  for (std::size_t i = 0; i < r.surfaces.size(); ++i) r.surfaces[i].dropped = dropped[i];
+  r.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  return r;
+}
+
+}  // namespace duplexfit

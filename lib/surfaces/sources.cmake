@@ -1,0 +1,2 @@
+# Sources of the surfaces module, relative to lib/ (appended to DUPLEXFIT_MODULE_SOURCES).
+list(APPEND DUPLEXFIT_MODULE_SOURCES surfaces/surfaces.cpp surfaces/self_check.cpp)

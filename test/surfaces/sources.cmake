@@ -1,0 +1,2 @@
+# Test sources of the surfaces module, relative to test/ (appended to DUPLEXFIT_MODULE_TESTS).
+list(APPEND DUPLEXFIT_MODULE_TESTS surfaces/test_self_check.cpp)
