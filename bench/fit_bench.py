@@ -13,7 +13,7 @@ import subprocess
 import sys
 import tempfile
 
-# The paper's Table 2 (algorithm.md section 11.1): points, levels, CPU time, GPU time (seconds).
+# The paper's Table 2 (docs/method.md section 11.1): points, levels, CPU time, GPU time (seconds).
 PAPER = {
     "fandisk_8k": ("Fandisk (lr)", 8030, 6, 6.4, 3.0),
     "fandisk_550k": ("Fandisk (hr)", 550340, 9, 940.1, 150.8),

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Pre-processing benchmark: runs `duplexfit denoise` (bilateral filter, algorithm.md section 9) and
+"""Pre-processing benchmark: runs `duplexfit denoise` (bilateral filter, docs/method.md section 9) and
 `duplexfit normals` (PCA normals with spanning-tree and outward orientation) with --json on the shared
 clouds, for every device of `duplexfit devices --json` (the reference path included) or those given with
 --device, and prints the seconds and points per second of each stage.

@@ -3,7 +3,7 @@
 on a torus, on every device `duplexfit devices --json` lists (the reference path included). Prints layers,
 layers/s and contour vertices/s per device and mode, with the layer counts of the paper's Fig. 21.
 
-Settings (algorithm.md §10.6, §11): τ = 0.01, t_min = τ/4, t_max = 5τ; grid 0.005 for the head and 0.01
+Settings (docs/method.md §10.6, §11): τ = 0.01, t_min = τ/4, t_max = 5τ; grid 0.005 for the head and 0.01
 for the torus (Fig. 21). The paper scales each model to unit *width*; the clouds here have their longest
 side 1, so the head (maxplanck_40k: x 0.70, y 0.90, z 1.00) is sliced with every length divided by the
 scale s = 1/width (the count of a field scaled by s at τ equals that of the unscaled field at τ/s), and its

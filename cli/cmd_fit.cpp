@@ -388,7 +388,7 @@ int cmdFit(Args& args) {
   w.key("denoise");
   if (filterReport) {
     const BilateralReport& b = *filterReport;
-    w.beginObject().field("method", "bilateral point filter (algorithm.md section 9)");
+    w.beginObject().field("method", "bilateral point filter (docs/method.md section 9)");
     w.field("sigma_spatial", b.sigmaSpatial).field("sigma_range", b.sigmaRange).field("radius", b.radius);
     w.field("area_sigma", b.areaSigma).field("iterations", b.iterations).field("symmetric_range", b.symmetricRange);
     w.field("mean_neighbors", b.meanNeighbors).field("moved", b.moved);

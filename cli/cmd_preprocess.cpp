@@ -1,4 +1,4 @@
-// `duplexfit denoise`: the bilateral point filter (algorithm.md §9) of an oriented cloud; `duplexfit normals`:
+// `duplexfit denoise`: the bilateral point filter (docs/method.md §9) of an oriented cloud; `duplexfit normals`:
 // outward unit normals for a cloud that has none. Both write a binary PLY with normals atomically (a failed
 // run leaves no output) and, with --json, a summary with the parameters used and the timings on stdout.
 #include <chrono>
@@ -18,7 +18,7 @@ const std::vector<std::string> kDenoiseValued = {"output",     "sigma-s", "sigma
                                                  "area-sigma", "iterations", "normal-k", "device", "precision"};
 const std::vector<std::string> kNormalsValued = {"output", "k", "graph-k", "device", "precision"};
 
-const char* const kPreprocessHelp = R"(  denoise INPUT      bilateral point filter of an oriented cloud (algorithm.md §9): each point moves to the
+const char* const kPreprocessHelp = R"(  denoise INPUT      bilateral point filter of an oriented cloud (docs/method.md §9): each point moves to the
                      weighted mean of its projections onto its neighbours' tangent planes; normals kept
       -o OUT           output cloud (binary PLY with normals; required)
       --sigma-s S      spatial width sigma_psi (default 4 R_ave, R_ave = mean sqrt(sigma_M^2 / N(q)))

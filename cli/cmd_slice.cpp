@@ -29,7 +29,7 @@ const std::vector<std::string> kSliceValued = {"cusp",  "min-layer", "max-layer"
 
 const char* const kSliceHelp = R"(  slice FIELD        cut a saved field into print layers: contours of {f >= 0} (or of the shell between
                      the surface and its offset) as closed, oriented, nested loops; adaptive layer
-                     thickness from the cusp height (algorithm.md §10) or uniform layers
+                     thickness from the cusp height (docs/method.md §10) or uniform layers
       --cusp T         cusp height tau (adaptive slicing; required unless --layer)
       --min-layer A    thinnest layer (default tau/4)     --max-layer B   thickest layer (default 5 tau)
       --layer H        uniform layers of thickness H instead of adaptive ones

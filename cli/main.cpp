@@ -143,7 +143,7 @@ int cmdDevices(Args& args) {
   return 0;
 }
 
-// The centres of one duplex-fit level on a sphere of radius 0.5 (algorithm.md §3): n Fibonacci points,
+// The centres of one duplex-fit level on a sphere of radius 0.5 (docs/method.md §3): n Fibonacci points,
 // their copies δ inward (target δ) and σ/10 outward (target −σ/10). Returns targets t.
 Points sphereLevel(int n, double delta, double sigma, Eigen::VectorXd& targets) {
   Points c(3 * n, 3);
@@ -201,7 +201,7 @@ int cmdSolve(Args& args) {
   log("assembling " + std::to_string(3 * n) + " unknowns, sigma " + std::to_string(sigma) + " ...");
   const CsrMatrix a = assembleWendland(centres, sigma);
   const double assemblySeconds = seconds(t0);
-  const Eigen::VectorXd b = targets.array() + 1.0;  // b = t − f_0 with f_0 = −1 (algorithm.md §5)
+  const Eigen::VectorXd b = targets.array() + 1.0;  // b = t − f_0 with f_0 = −1 (docs/method.md §5)
   t0 = Clock::now();
   const DeviceCsr m = DeviceCsr::upload(device, a, precision);
   const DeviceVector db = DeviceVector::upload(device, b, precision);

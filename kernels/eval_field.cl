@@ -1,4 +1,4 @@
-/* Evaluation of the multi-level CSRBF field (algorithm.md section 6) at query points (needs common.cl):
+/* Evaluation of the multi-level CSRBF field (docs/method.md section 6) at query points (needs common.cl):
  *   f(x) = f0 + sum_levels sum_{|x - c_j| < sigma} w_j phi(|x - c_j| / sigma),  phi(r) = (1-r)^4 (4r+1)
  * with optional gradient and Hessian. One work-item per query. Each level's centres are bucketed in a
  * uniform grid whose cells are at least sigma wide, so only the 27 cells around the query's cell can

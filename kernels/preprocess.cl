@@ -4,7 +4,7 @@
  * every kernel works with differences of nearby points only. Their C++ twins are in
  * lib/preprocess/preprocess_ref.hpp and must stay in step with these loops. */
 
-/* Bilateral point filter (algorithm.md §9), one pass, all points at once.
+/* Bilateral point filter (docs/method.md §9), one pass, all points at once.
  *   pos, nrm   3 REAL per point (xyz), the current positions and the unit (or zero) normals
  *   area       s_q = σ²/N(q) per point
  *   offsets    n + 1 CSR offsets into nbr; nbr holds the neighbours of point i (itself included)

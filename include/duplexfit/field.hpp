@@ -1,4 +1,4 @@
-// ImplicitField: the fitted multi-level CSRBF function f (algorithm.md §5–§6) as a value type, with
+// ImplicitField: the fitted multi-level CSRBF function f (docs/method.md §5–§6) as a value type, with
 // batched evaluation of f, ∇f and the Hessian on any device, and a versioned binary file format.
 #pragma once
 

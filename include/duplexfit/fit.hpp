@@ -1,4 +1,4 @@
-// Duplex fitting (algorithm.md §1–§5, §8.1): an oriented point cloud in, ONE multi-level CSRBF field out
+// Duplex fitting (docs/method.md §1–§5, §8.1): an oriented point cloud in, ONE multi-level CSRBF field out
 // whose 0-level set is the surface and whose δ-level sets are the requested offset surfaces.
 #pragma once
 
@@ -19,13 +19,13 @@ enum class PreconditionerKind {
   BlockJacobi   ///< exact inverses of diagonal blocks of spatially ordered centres (default)
 };
 
-/// Fit parameters. Every field documents its unit and default; defaults follow algorithm.md.
+/// Fit parameters. Every field documents its unit and default; defaults follow docs/method.md.
 struct FitOptions {
   /// Signed offsets δ in input units (or fractions of the bounding box's largest side when offsetsRelative):
   /// δ > 0 inward (hollowing), δ < 0 outward. Each must be non-zero and smaller than that largest side.
   std::vector<double> offsets;
   bool offsetsRelative = false;
-  /// The input normals already point into the solid (otherwise they are flipped, algorithm.md §1).
+  /// The input normals already point into the solid (otherwise they are flipped, docs/method.md §1).
   bool normalsInward = false;
   /// η of the offset validity test: keep q = p + δν when no other point is closer than |δ|(1 − η) (§3.1).
   double validityTolerance = 1e-2;
@@ -156,7 +156,7 @@ using FitProgressCallback = std::function<bool(const FitProgress&)>;
 FitResult fit(const Device& device, const PointSet& points, const FitOptions& options = {},
               const FitProgressCallback& progress = {});
 
-/// The separate-fit baseline (the comparison of the paper's Table 1, algorithm.md §11): the surface fitted
+/// The separate-fit baseline (the comparison of the paper's Table 1, docs/method.md §11): the surface fitted
 /// from the cloud alone and every offset surface from its own offset points alone, each a multi-level CSRBF
 /// fit of its own (off-surface points on both sides, no offsets), so each field's 0-level is its surface.
 struct SeparateFitResult {

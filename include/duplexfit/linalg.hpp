@@ -1,5 +1,5 @@
 // Vectors and CSR matrices that live on a Device, the BLAS-1 and SpMV operations on them, and the
-// preconditioned conjugate gradient solver used by every hierarchy level (docs: algorithm.md §5).
+// preconditioned conjugate gradient solver used by every hierarchy level (docs: docs/method.md §5).
 // Every operation runs either as OpenCL kernels or, on Device::reference(), as plain C++ loops
 // with the same arithmetic precision.
 #pragma once
@@ -159,7 +159,7 @@ enum class StopReason {
 const char* stopReasonName(StopReason reason) noexcept;
 
 struct SolverOptions {
-  int maxIterations = 20000;         ///< iteration cap (fine levels can need thousands, algorithm.md §5)
+  int maxIterations = 20000;         ///< iteration cap (fine levels can need thousands, docs/method.md §5)
   double relativeTolerance = 0.0;    ///< stop at ‖r‖ ≤ tol·‖b‖; 0: 1e-6 in double, 1e-5 in float
   /// Also stop when max_i |r_i| ≤ absoluteTolerance (0: off). The level solves of a fit set it: there
   /// r_i is exactly the remaining fit error at centre i.

@@ -1,4 +1,4 @@
-// Mesh measurements (algorithm.md §8): input validation shared by every command, a bounding-volume
+// Mesh measurements (docs/method.md §8): input validation shared by every command, a bounding-volume
 // hierarchy with exact closest-point queries, Metro-style area-uniform sampling, two-sided Metro
 // distances with the symmetric Hausdorff distance, offset-surface accuracy against a surface, and a
 // mesh check (closed, manifold, oriented, outward, genus, boundary loops, self-intersections).

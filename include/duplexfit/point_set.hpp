@@ -10,7 +10,7 @@
 namespace duplexfit {
 
 /// Positions and normals of n points (#P×3 each). Normals are unit length or exactly zero (a point with
-/// an unusable normal: it constrains f = 0 but gets no offset or off-surface companions, algorithm.md §3.3).
+/// an unusable normal: it constrains f = 0 but gets no offset or off-surface companions, docs/method.md §3.3).
 class PointSet {
  public:
   PointSet() = default;
@@ -31,7 +31,7 @@ class PointSet {
   /// points removed.
   std::size_t mergeDuplicates(double relativeTolerance = 0.0);
 
-  /// Flips every normal (ν = −n: the fit wants normals pointing into the solid, algorithm.md §1).
+  /// Flips every normal (ν = −n: the fit wants normals pointing into the solid, docs/method.md §1).
   void flipNormals();
 
  private:

@@ -1,4 +1,4 @@
-// Polygonisation of level sets of a scalar field over a regular grid (docs: algorithm.md §7,
+// Polygonisation of level sets of a scalar field over a regular grid (docs: docs/method.md §7,
 // §12.15): marching tetrahedra on a Kuhn (Freudenthal) triangulation of the grid, with node values
 // sampled in large batches through a callback and, optionally, only near the requested level sets.
 #pragma once

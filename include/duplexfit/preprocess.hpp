@@ -1,4 +1,4 @@
-// Point-cloud pre-processing before a fit: the bilateral point filter of algorithm.md §9 (denoising),
+// Point-cloud pre-processing before a fit: the bilateral point filter of docs/method.md §9 (denoising),
 // and normal estimation with consistent outward orientation for clouds that carry no normals.
 // Neighbour queries run on the host (FLANN); the per-point sums run as OpenCL kernels on the device, or as
 // the same loops in C++ on the reference device.
@@ -13,7 +13,7 @@
 
 namespace duplexfit {
 
-/// Options of bilateralFilter. Every length is in input units; 0 picks the rule of algorithm.md §9.
+/// Options of bilateralFilter. Every length is in input units; 0 picks the rule of docs/method.md §9.
 struct BilateralOptions {
   /// σ_ψ, width of the spatial weight ψ(r) = exp(−r²/(2σ_ψ²)); 0: 4·R_ave.
   double sigmaSpatial = 0.0;
@@ -61,7 +61,7 @@ struct BilateralReport {
   double seconds = 0.0;             ///< everything
 };
 
-/// Filters noisy positions with the bilateral point filter (algorithm.md §9): each point moves to the
+/// Filters noisy positions with the bilateral point filter (docs/method.md §9): each point moves to the
 /// weighted mean of its projections K_q(p) = p − ((p − q)·n_q) n_q onto its neighbours' tangent planes,
 /// with weights s_q·ψ(‖q − p‖)·ζ(‖K_q(p) − p‖). All points of a pass move at once. Normals are kept
 /// unless options.reestimateNormals. Points whose normal is zero contribute K_q(p) = p.

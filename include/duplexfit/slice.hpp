@@ -1,4 +1,4 @@
-// Slicing a field for layered manufacturing (algorithm.md §10): per layer, the plane's samples of f are
+// Slicing a field for layered manufacturing (docs/method.md §10): per layer, the plane's samples of f are
 // contoured by marching squares at the 0-level (and at an offset level in shell mode), the vertices are
 // refined onto the true level set, joined into closed, oriented and nested loops, and the next layer's
 // thickness follows from the cusp height τ and the vertical normal curvature (§10.2–§10.5). Also: the
@@ -25,7 +25,7 @@ namespace duplexfit {
 /// 2D points (plane coordinates), one per row.
 using Points2 = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
 
-/// What a layer's region is. f > 0 inside the solid (algorithm.md §1).
+/// What a layer's region is. f > 0 inside the solid (docs/method.md §1).
 enum class SliceMode {
   Zero,  ///< the solid {f ≥ 0}: loops at the 0-level only ("zero only" in §10.5)
   Shell  ///< the shell between the 0-level and the offset δ: {0 ≤ f ≤ δ} for δ > 0 (inward, hollowing),

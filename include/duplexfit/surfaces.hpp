@@ -1,5 +1,5 @@
 // Extraction of a fitted field's level sets (the surface and every offset surface) as meshes: the field is
-// sampled on the device over the whole enlarged box (algorithm.md §7) and polygonized in one pass.
+// sampled on the device over the whole enlarged box (docs/method.md §7) and polygonized in one pass.
 #pragma once
 
 #include <vector>
@@ -11,7 +11,7 @@
 namespace duplexfit {
 
 struct SurfaceOptions {
-  /// Grid cell size in input units; 0: min(σ_M/2, min|δ|/4) (algorithm.md §7), kept between the cells of
+  /// Grid cell size in input units; 0: min(σ_M/2, min|δ|/4) (docs/method.md §7), kept between the cells of
   /// minResolution and maxResolution.
   double cell = 0.0;
   /// Cells along the box's longest side; overrides `cell` when > 0.

@@ -1,4 +1,4 @@
-// The Wendland CSRBF φ(r) = (1 − r)⁴₊(4r + 1) (algorithm.md §2) and the assembly of the level system
+// The Wendland CSRBF φ(r) = (1 − r)⁴₊(4r + 1) (docs/method.md §2) and the assembly of the level system
 // Φ_ij = φ(‖c_i − c_j‖/σ) + λδ_ij as a CSR matrix.
 #pragma once
 

@@ -1,5 +1,5 @@
 // PointSet: validation and normalisation of oriented point clouds, duplicate merging (a hash over
-// rounded positions, algorithm.md §3.5) and the fittability checks run before a fit.
+// rounded positions, docs/method.md §3.5) and the fittability checks run before a fit.
 #include "duplexfit/point_set.hpp"
 
 #include <algorithm>
@@ -138,7 +138,7 @@ std::size_t PointSet::mergeDuplicates(double relativeTolerance) {
   if (groups == n) return 0;
 
   // Each group keeps its first point's position; normals are summed and renormalised, and become
-  // zero when they cancel (‖Σν‖ ≤ 10⁻⁶·count, the zero test of algorithm.md §3.3).
+  // zero when they cancel (‖Σν‖ ≤ 10⁻⁶·count, the zero test of docs/method.md §3.3).
   Points positions(groups, 3);
   Points normals = Points::Zero(groups, 3);
   std::vector<bool> seen(static_cast<std::size_t>(groups), false);

@@ -1,4 +1,4 @@
-// Offset and off-surface points with the validity test of algorithm.md §3.1–§3.2, and the merge of
+// Offset and off-surface points with the validity test of docs/method.md §3.1–§3.2, and the merge of
 // near-duplicate centres (§3.5), using the FLANN-backed NeighborIndex.
 #include "fit/constraints.hpp"
 

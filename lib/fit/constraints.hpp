@@ -1,4 +1,4 @@
-// The centres of one level (algorithm.md §3): surface points (target 0), offset points q = p + δν kept by
+// The centres of one level (docs/method.md §3): surface points (target 0), offset points q = p + δν kept by
 // the validity test (target δ), off-surface points (target ±d_k), merged where closer than mergeDistance·σ_k; optionally (medial) the rejected companions moved onto the
 // medial surface with their true distance as target.
 #pragma once

@@ -21,7 +21,7 @@ namespace {
 constexpr char kMagic[8] = {'D', 'P', 'X', 'F', 'I', 'E', 'L', 'D'};
 constexpr std::uint32_t kVersion = 1;
 
-// Contribution of one centre at offset u = x − c (normalised units) to f, ∇f and H (algorithm.md §6).
+// Contribution of one centre at offset u = x − c (normalised units) to f, ∇f and H (docs/method.md §6).
 struct Accumulator {
   double f = 0.0;
   Eigen::Vector3d g = Eigen::Vector3d::Zero();

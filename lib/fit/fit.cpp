@@ -1,4 +1,4 @@
-// The duplex-fit pipeline (algorithm.md appendix): normalise to the unit box, build the hierarchy, and for
+// The duplex-fit pipeline (docs/method.md appendix): normalise to the unit box, build the hierarchy, and for
 // each level generate the constraints, assemble Φ_k + λ_k I, take b = t − f_{k−1}(C) from the field so far
 // (evaluated on the device), solve by PCG on the device, and append the level. Then measure E_0 and E_δ.
 #include "duplexfit/fit.hpp"

@@ -1,4 +1,4 @@
-// Hierarchy construction (algorithm.md §4): box, adaptive-octree σ_0, M, and per-level centroids.
+// Hierarchy construction (docs/method.md §4): box, adaptive-octree σ_0, M, and per-level centroids.
 #include "fit/hierarchy.hpp"
 
 #include <algorithm>

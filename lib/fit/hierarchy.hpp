@@ -1,4 +1,4 @@
-// The octree hierarchy of the fit (algorithm.md §4): the enlarged bounding box, σ_0 from an adaptive
+// The octree hierarchy of the fit (docs/method.md §4): the enlarged bounding box, σ_0 from an adaptive
 // octree, the number of levels M, and the per-level point sets (cell centroids with averaged normals).
 #pragma once
 

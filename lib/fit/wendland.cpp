@@ -1,4 +1,4 @@
-// Assembly of the level system Φ + λI (algorithm.md §5) as a CSR matrix: a radius search with the
+// Assembly of the level system Φ + λI (docs/method.md §5) as a CSR matrix: a radius search with the
 // support σ gives each row's neighbours, which are re-sorted by column and mapped through φ(d/σ).
 // Rows are processed in chunks so that the neighbour lists never exist for all rows at once.
 #include "duplexfit/wendland.hpp"

@@ -1,4 +1,4 @@
-// Preconditioned conjugate gradients (algorithm.md §5). The iteration is written once over device
+// Preconditioned conjugate gradients (docs/method.md §5). The iteration is written once over device
 // operations; with a diagonal preconditioner it uses the fused kernels (3 passes per iteration:
 // SpMV+p·q, x/r update + r·z + r·r, new direction), otherwise plain BLAS-1 calls. Non-convergence,
 // breakdown (not SPD) and non-finite values are reported in SolveStats, never thrown.

@@ -1,4 +1,4 @@
-// Node sampling for polygonisation (algorithm.md §7): requests are gathered into large batches for
+// Node sampling for polygonisation (docs/method.md §7): requests are gathered into large batches for
 // the sampler (a device evaluates whole batches), validated and stored as floats in a NodeStore.
 // The adaptive mode refines coarse blocks octree-style and skips blocks that cannot contain a
 // crossing of any iso value under the bound |∇f| ≤ lipschitz.

@@ -1,4 +1,4 @@
-// The bilateral point filter of algorithm.md §9 (after Jones, Durand and Desbrun 2003): parameters from
+// The bilateral point filter of docs/method.md §9 (after Jones, Durand and Desbrun 2003): parameters from
 // the spec's rules, neighbourhoods from FLANN on the host packed as CSR lists, and the weighted sums on
 // the device (kernels/preprocess.cl bilateral_filter) or its C++ twin.
 #include <algorithm>
@@ -26,7 +26,7 @@ double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::
 /// Queries per radius search: bounds the memory of the unsorted hit lists (about 60 hits × 12 bytes each).
 constexpr Eigen::Index kQueryChunk = 131072;
 
-/// α of σ_1 = αL (algorithm.md §4.4), as the fit uses by default.
+/// α of σ_1 = αL (docs/method.md §4.4), as the fit uses by default.
 constexpr double kAlpha = 0.75;
 
 void checkLength(double v, const char* name) {

@@ -1,4 +1,4 @@
-// Slicing (algorithm.md §10): plane sampling in bands of rows (FieldEvaluator batches), marching squares
+// Slicing (docs/method.md §10): plane sampling in bands of rows (FieldEvaluator batches), marching squares
 // with oriented segments and asymptotic-decider saddles, vertices refined along their cell edge on the
 // true f, loops joined by edge identity, nested into a containment tree, and the adaptive thickness from
 // the cusp height and the vertical normal curvature.

@@ -1,4 +1,4 @@
-// Level-set extraction of a fitted field: grid choice (algorithm.md §7, §12 item 15) and a device-backed
+// Level-set extraction of a fitted field: grid choice (docs/method.md §7, §12 item 15) and a device-backed
 // sampler for the polygonizer.
 #include "duplexfit/surfaces.hpp"
 

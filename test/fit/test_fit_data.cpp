@@ -82,7 +82,7 @@ TEST_SUITE("fit") {
         // outward offset surface (tube radius 0.2) spreads its gaps by 4/3. Measured: p99 1.1%, max 7.4%
         // of |delta|, the max over a hole of radius 0.025 (3.9x the median spacing) at (u, v) =
         // (0.05, 4.85) where no finer level has centres (an extra level changes nothing). The spec's own
-        // prototype reports 1.4% for this case (algorithm.md section 11.4).
+        // prototype reports 1.4% for this case (docs/method.md section 11.4).
         CHECK(p99 <= 0.015 * std::abs(delta));
         CHECK(err[err.size() - 1] <= 0.1 * std::abs(delta));
       }
@@ -115,7 +115,7 @@ TEST_SUITE("fit") {
       CAPTURE(name);
       const FitResult r = fitCloud(dir, name, {0.05});
       CHECK(r.report.e0 <= 1e-4);
-      // Concave features lose offset points (algorithm.md §3.4): some candidates must be rejected.
+      // Concave features lose offset points (docs/method.md §3.4): some candidates must be rejected.
       const LevelReport& finest = r.report.levelReports.back();
       if (std::string(name) == "notched_cube_24k") CHECK(finest.offsetKept[0] < finest.offsetCandidates[0]);
       const SurfaceResult m = extractSurfaces(fitDevice(), r.field, {0.0, 0.05});

@@ -1,4 +1,4 @@
-// The bilateral point filter (algorithm.md §9): the device kernel against its C++ twin, denoising of an
+// The bilateral point filter (docs/method.md §9): the device kernel against its C++ twin, denoising of an
 // analytic noisy sphere (RMS radial error down, only a small radial bias), the shared noisy fandisk,
 // parameter rules and overrides, and bad input.
 #include <doctest/doctest.h>

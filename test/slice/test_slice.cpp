@@ -1,4 +1,4 @@
-// Slicing (algorithm.md §10): contours closed, simple, oriented and nested, also at critical heights; the
+// Slicing (docs/method.md §10): contours closed, simple, oriented and nested, also at critical heights; the
 // §10.4 thickness formulas; the §10.6 layer counts; the cusp deviation against the analytic surface;
 // uniform slicing, chunked sampling and bad options.
 #include <doctest/doctest.h>

@@ -1,5 +1,5 @@
 // Deterministic test data: Fibonacci-lattice sphere and torus samples, the three centre sets of a
-// duplex-fit level (algorithm.md §3), a support radius for a requested row density, and random
+// duplex-fit level (docs/method.md §3), a support radius for a requested row density, and random
 // sparse SPD matrices from fixed seeds.
 #include "shapes.hpp"
 
