@@ -27,9 +27,9 @@ const std::vector<std::string> kFitValued = {"offset", "output", "device", "prec
                                              "smoothing", "fit-tol", "tol", "max-iterations", "cell", "resolution",
                                              "format", "alpha", "anchor-skip", "normals-k", "denoise-sigma-s",
                                              "denoise-sigma-r", "denoise-radius", "denoise-iterations",
-                                             "min-component"};
+                                             "min-component", "min-offset-component"};
 const std::vector<std::string> kMeshValued = {"iso", "output", "device", "precision", "cell", "resolution",
-                                              "min-component"};
+                                              "min-component", "min-offset-component"};
 
 namespace {
 
@@ -107,12 +107,19 @@ std::string meshExtension(Args& args) {
 /// Default of --min-component (fit and mesh): connected components whose area is below this fraction of
 /// their mesh's area are dropped before the meshes are written. 0 drops nothing.
 constexpr double kDefaultMinComponent = 0.0;
+/// Default of --min-offset-component (fit): the same for the offset meshes only. 0.1%: slivers of the δ
+/// level where a part is almost exactly 2δ thick (eight_110k at δ = 0.05: 3 of 4 components, none in the
+/// exact offset; fandisk_50k at 0.025: 7 of 8; docs/fidelity.md); the zero level keeps everything and the
+/// self-check flags what carries no input point.
+constexpr double kDefaultMinOffsetComponent = 0.001;
 
-double minComponentOption(Args& args) {
-  const double f = args.num("min-component", kDefaultMinComponent);
-  if (!(f >= 0.0 && f < 1.0)) throw UsageError("--min-component must be an area fraction in [0, 1)");
+double fractionOption(Args& args, const char* name, double fallback) {
+  const double f = args.num(name, fallback);
+  if (!(f >= 0.0 && f < 1.0)) throw UsageError(std::string("--") + name + " must be an area fraction in [0, 1)");
   return f;
 }
+
+double minComponentOption(Args& args) { return fractionOption(args, "min-component", kDefaultMinComponent); }
 
 std::string surfaceName(int surface) { return surface == 0 ? "zero level" : "offset " + std::to_string(surface); }
 
@@ -128,8 +135,9 @@ void logSelfCheck(const SelfCheckReport& r, const std::function<void(const std::
   for (const SurfaceSelfCheck& s : r.surfaces) {
     if (s.dropped.components == 0) continue;
     std::ostringstream line;
+    const double fraction = s.surface == 0 ? r.minAreaFraction : std::max(r.minAreaFraction, r.minOffsetAreaFraction);
     line << std::setprecision(4) << surfaceName(s.surface) << ": dropped " << s.dropped.components
-         << " component(s) below " << r.minAreaFraction << " of the mesh's area (" << s.dropped.faces << " faces, "
+         << " component(s) below " << fraction << " of the mesh's area (" << s.dropped.faces << " faces, "
          << 100.0 * s.dropped.areaFraction << "% of the area)";
     log(line.str());
   }
@@ -155,6 +163,7 @@ void logSelfCheck(const SelfCheckReport& r, const std::function<void(const std::
 void writeSelfCheck(JsonWriter& w, const SelfCheckReport& r, const std::vector<std::string>& meshNames) {
   w.key("self_check").beginObject().field("ok", r.ok()).field("points_checked", r.pointsChecked);
   w.field("point_tolerance", r.pointTolerance).field("min_component", r.minAreaFraction);
+  w.field("min_offset_component", r.minOffsetAreaFraction);
   w.key("surfaces").beginArray();
   for (const SurfaceSelfCheck& s : r.surfaces) {
     w.beginObject().field("surface", s.surface).field("file", meshNames[static_cast<std::size_t>(s.surface)]);
@@ -218,6 +227,7 @@ int cmdFit(Args& args) {
   const bool separate = args.flag("separate");
   SelfCheckOptions checkOptions;
   checkOptions.minAreaFraction = minComponentOption(args);
+  checkOptions.minOffsetAreaFraction = fractionOption(args, "min-offset-component", kDefaultMinOffsetComponent);
   // Pre-processing (issue: noisy and unoriented scans): normals first (the filter needs them), then the
   // bilateral filter.
   const bool estimate = args.flag("estimate-normals");

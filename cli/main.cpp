@@ -67,7 +67,7 @@ commands:
       --side-test      also reject offset/off-surface points behind their nearest point's tangent
                        plane (removes spurious sheets from flipped normals; see FitOptions::sideTest)
       --no-anchors     no sign anchors in empty space (winding-number classified centres at levels
-                       1 .. M - --anchor-skip, default 2; they stop holes filling with phantom solid)
+                       1 .. M - --anchor-skip, default 1; they stop holes filling with phantom solid)
       --no-medial      drop offset/off-surface points rejected by the validity test instead of moving
                        them onto the medial surface of thin parts with their true distance as target
       --offset-correction  add a correction level: points Newton-projected onto each δ level, fitted
@@ -80,6 +80,7 @@ commands:
       --separate       baseline: fit the surface from the cloud alone and each offset surface from its
                        own offset points alone (one field each: field.dpxf, field_offsetN.dpxf)
       --min-component F  drop mesh components smaller than F of their mesh's area (default 0: none)
+      --min-offset-component F  the same for the offset meshes only (default 0.001)
                      Every fit checks its meshes: zero-level components that carry no input point and
                      offset components not at about |D| from the zero level are warnings, listed under
                      "self_check" in report.json; --strict then exits with status 4.

@@ -49,12 +49,12 @@ struct FitOptions {
   /// valid points at coarse levels where the curvature between cell centroids exceeds δ (torus_10k,
   /// δ = −0.05: max |f − δ| on the exact offset 7.4% → 14% of |δ|, over a sampling hole).
   bool sideTest = false;
-  /// Sign anchors (ours, docs/method.md "Sign of empty space"): at levels 1 … M − anchorSkipFinest, centres
+  /// Sign anchors (ours, docs/method.md "Sign of empty space"): at levels 1 … M − anchorSkipFinest (M − 1), centres
   /// on a σ_k/2 grid in empty space (3σ_k/4 … 2σ_k from the samples; level 1 everywhere in the enlarged box)
   /// with the signed distance to the cloud as target, the sign from the cloud's winding number. Keeps
   /// coarse levels from filling holes and cavities with phantom solid (thin_torus_20k: a blob in the hole).
   bool signAnchors = true;
-  int anchorSkipFinest = 2;
+  int anchorSkipFinest = 1;
   /// Medial constraints (ours, docs/method.md "Thin parts"): offset and off-surface candidates rejected by
   /// the validity test are moved back along their normal onto the medial surface (largest valid step) and
   /// kept with their true distance as target, instead of being dropped.

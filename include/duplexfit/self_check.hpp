@@ -66,6 +66,9 @@ struct SelfCheckOptions {
   std::size_t offsetVertexSamples = 20000;
   /// Area fraction below which cleanAndSelfCheck drops a component before checking (0: none).
   double minAreaFraction = 0.0;
+  /// The same for the offset meshes only (the larger of the two applies there): slivers of the δ level
+  /// where a part is almost exactly 2δ thick.
+  double minOffsetAreaFraction = 0.0;
 };
 
 /// One mesh's part of the check.
@@ -85,6 +88,7 @@ struct SelfCheckReport {
   double pointTolerance = 0.0;            ///< the tolerance used (input units; 0 when not checked)
   bool pointsChecked = false;             ///< input points were given, so NoInputPoints was tested
   double minAreaFraction = 0.0;           ///< as given to cleanAndSelfCheck
+  double minOffsetAreaFraction = 0.0;     ///< as given to cleanAndSelfCheck
   double seconds = 0.0;
   bool ok() const noexcept { return issues.empty(); }
 };
@@ -100,7 +104,8 @@ struct SelfCheckReport {
 SelfCheckReport selfCheck(const std::vector<Mesh>& meshes, const std::vector<double>& isos, const Points& inputPoints,
                           const SelfCheckOptions& options = {});
 
-/// dropSmallComponents(·, options.minAreaFraction) on every mesh in place, then selfCheck on the result;
+/// dropSmallComponents on every mesh in place (minAreaFraction on the zero-level mesh, the larger of it and
+/// minOffsetAreaFraction on the offset meshes), then selfCheck on the result;
 /// the report's surfaces say what was dropped, and seconds cover both.
 SelfCheckReport cleanAndSelfCheck(std::vector<Mesh>& meshes, const std::vector<double>& isos,
                                   const Points& inputPoints, const SelfCheckOptions& options = {});

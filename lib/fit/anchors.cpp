@@ -149,6 +149,14 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
       ++out.disagreeing;
       continue;
     }
+    bool nearOffset = false;
+    for (const double delta : o.offsets) {
+      if ((delta > 0.0) == inside && std::abs(bandDistance[r] - std::abs(delta)) < o.offsetClearance) nearOffset = true;
+    }
+    if (nearOffset) {
+      ++out.nearOffset;
+      continue;
+    }
     (inside ? out.inside : out.outside) += 1;
     pos.push_back(bq.row(static_cast<Eigen::Index>(r)).transpose());
     target.push_back((inside ? 1.0 : -1.0) * std::min(disk[static_cast<Eigen::Index>(r)], o.clamp));

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -24,6 +25,10 @@ struct AnchorOptions {
   double centreClearance = 0.0;  ///< ... and this far from every other centre of the level
   double clamp = 1.0;        ///< |target| = min(disk-soup distance, clamp)
   double ambiguity = 0.25;   ///< skip when |w − 0.5| < 0.5 − ambiguity (w in (ambiguity, 1 − ambiguity))
+  /// Offsets (signed, normalised, > 0 inside): an anchor on an offset's side whose distance is within
+  /// offsetClearance of |δ| is skipped, so that the anchors' small target errors do not bend the δ level.
+  std::vector<double> offsets;
+  double offsetClearance = 0.0;
   int agreeNeighbors = 8;    ///< skip when all these nearest samples put the candidate on the other side
   std::size_t maxCells = std::size_t{1} << 24;  ///< larger grids are not scanned (the level gets none)
 };
@@ -36,6 +41,7 @@ struct Anchors {
   std::size_t ambiguous = 0;   ///< winding number too close to 1/2
   std::size_t disagreeing = 0; ///< the nearest samples unanimously contradict the winding number
   std::size_t crowded = 0;     ///< too close to another centre of the level
+  std::size_t nearOffset = 0;  ///< within offsetClearance of an offset level
   bool gridTooLarge = false;
 };
 

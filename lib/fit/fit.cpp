@@ -189,11 +189,13 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
       ao.minDistance = std::max(0.75 * sigma, 3.0 * spacing);
       ao.maxDistance = k == 1 ? 0.0 : 2.0 * sigma;
       ao.centreClearance = sigma / 4.0;
+      ao.offsets = deltas;
+      ao.offsetClearance = sigma / 2.0;
       const detail::Anchors an =
           detail::levelAnchors(anchorBox, u, nu, winding->areas(), *inputIndex, *winding, c.centres, ao);
       lr.anchorsInside = an.inside;
       lr.anchorsOutside = an.outside;
-      lr.anchorsSkipped = an.ambiguous + an.disagreeing + an.crowded;
+      lr.anchorsSkipped = an.ambiguous + an.disagreeing + an.crowded + an.nearOffset;
       const Eigen::Index base = c.centres.rows(), extra = an.positions.rows();
       c.centres.conservativeResize(base + extra, 3);
       c.centres.bottomRows(extra) = an.positions;

@@ -239,6 +239,7 @@ SelfCheckReport selfCheck(const std::vector<Mesh>& meshes, const std::vector<dou
 
   SelfCheckReport r;
   r.minAreaFraction = options.minAreaFraction;
+  r.minOffsetAreaFraction = options.minOffsetAreaFraction;
   const Mesh& zero = meshes[0];
   std::vector<Components> comps;
   comps.reserve(meshes.size());
@@ -326,11 +327,11 @@ SelfCheckReport cleanAndSelfCheck(std::vector<Mesh>& meshes, const std::vector<d
                                   const SelfCheckOptions& options) {
   const auto start = Clock::now();
   checkFraction(options.minAreaFraction);
+  checkFraction(options.minOffsetAreaFraction);
   std::vector<DroppedComponents> dropped(meshes.size());
-  if (options.minAreaFraction > 0.0) {
-    for (std::size_t i = 0; i < meshes.size(); ++i) {
-      meshes[i] = dropSmallComponents(meshes[i], options.minAreaFraction, &dropped[i]);
-    }
+  for (std::size_t i = 0; i < meshes.size(); ++i) {
+    const double fraction = i == 0 ? options.minAreaFraction : std::max(options.minAreaFraction, options.minOffsetAreaFraction);
+    if (fraction > 0.0) meshes[i] = dropSmallComponents(meshes[i], fraction, &dropped[i]);
   }
   SelfCheckReport r = selfCheck(meshes, isos, inputPoints, options);
   for (std::size_t i = 0; i < r.surfaces.size(); ++i) r.surfaces[i].dropped = dropped[i];

@@ -2,6 +2,8 @@
 // clear error naming the file and element, a non-zero exit status and no partial output.
 #include <doctest/doctest.h>
 
+#include <cctype>
+
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -120,6 +122,30 @@ TEST_SUITE("cli") {
                        " --quiet");
     CHECK(mc.status == 0);
     CHECK(analyzeTopology(readMesh((dir / "min.obj").string())).components == 1);
+
+    // The robust-field mechanisms are counted per level and can be switched off.
+    CHECK(ss.str().find("\"anchors\": {") != std::string::npos);
+    CHECK(ss.str().find("\"offset_medial\": [") != std::string::npos);
+    const Run plain = cli("fit " + input.string() + " --offset 0.1 --no-anchors --no-medial -o " + (dir / "plain").string() +
+                          " --quiet --resolution 32");
+    REQUIRE(plain.status == 0);
+    std::ifstream plainReport(dir / "plain" / "report.json");
+    std::stringstream ps;
+    ps << plainReport.rdbuf();
+    // Every per-level count of anchors and medial points is 0 ("key": 0 followed by a non-digit).
+    auto allZero = [](const std::string& text, const std::string& key) {
+      std::size_t at = 0, seen = 0;
+      while ((at = text.find("\"" + key + "\": ", at)) != std::string::npos) {
+        at += key.size() + 4;
+        ++seen;
+        if (text[at] != '0' || std::isdigit(static_cast<unsigned char>(text[at + 1])) != 0) return false;
+      }
+      return seen > 0;
+    };
+    CHECK(allZero(ps.str(), "inside"));
+    CHECK(allZero(ps.str(), "outside"));
+    CHECK(allZero(ps.str(), "off_surface_medial"));
+    CHECK_FALSE(allZero(ss.str(), "outside"));  // the default fit placed anchors
 
     const Run rel = cli("fit " + input.string() + " --offset 0.1,-0.05 --offset-rel -o " + (dir / "rel").string() + " --quiet --format stl");
     CHECK(rel.status == 0);

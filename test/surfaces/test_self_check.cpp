@@ -10,6 +10,7 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/mesh.hpp"
 #include "duplexfit/self_check.hpp"
+#include "core/mesh_shapes.hpp"
 #include "measure/measure_shapes.hpp"
 #include "shapes.hpp"
 
@@ -17,16 +18,7 @@ namespace {
 
 using namespace duplexfit;
 using testing::icosphere;
-
-/// The union of two meshes (b's faces renumbered after a's vertices).
-Mesh merged(const Mesh& a, const Mesh& b) {
-  Mesh m;
-  m.vertices.resize(a.vertices.rows() + b.vertices.rows(), 3);
-  m.vertices << a.vertices, b.vertices;
-  m.faces.resize(a.faces.rows() + b.faces.rows(), 3);
-  m.faces << a.faces, (b.faces.array() + static_cast<std::int32_t>(a.vertices.rows())).matrix();
-  return m;
-}
+const auto merged = testing::concatenate;  // the union of two meshes
 
 /// Points on the unit sphere (the input cloud of the zero level).
 Points unitSpherePoints(int n = 2000) { return testing::fibonacciSphere(n, 1.0); }
