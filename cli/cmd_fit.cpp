@@ -76,7 +76,7 @@ void writeFitReport(JsonWriter& w, const FitReport& rep) {
     for (auto v : l.offsetMedial) w.value(v);
     w.endArray().field("off_surface_medial", l.offSurfaceMedial);
     w.key("anchors").beginObject().field("inside", l.anchorsInside).field("outside", l.anchorsOutside);
-    w.field("skipped", l.anchorsSkipped).endObject();
+    w.field("skipped", l.anchorsSkipped).field("spacing", l.anchorSpacing).endObject();
     w.field("merged_centres", l.mergedCentres).field("centres", l.centres).field("nonzeros", l.nonZeros);
     w.field("max_residual_before", l.maxResidualBefore);
     w.key("cg").beginObject().field("converged", l.solve.converged).field("stop_reason", stopReasonName(l.solve.reason));

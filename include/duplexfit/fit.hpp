@@ -89,7 +89,8 @@ struct LevelReport {
   std::vector<std::size_t> offsetMedial;  ///< per offset: rejected candidates kept on the medial surface
   std::size_t offSurfaceMedial = 0;       ///< off-surface candidates kept on the medial surface
   std::size_t anchorsInside = 0, anchorsOutside = 0;  ///< sign anchors added (FitOptions::signAnchors)
-  std::size_t anchorsSkipped = 0;     ///< anchor candidates skipped: ambiguous sign or crowded
+  std::size_t anchorsSkipped = 0;     ///< anchor candidates skipped: ambiguous sign, crowded, near an offset
+  double anchorSpacing = 0.0;         ///< grid spacing of the anchors (σ_k/2, doubled while too many; input units)
   std::size_t mergedCentres = 0;      ///< centres dropped as duplicates (closer than mergeDistance·σ_k)
   std::size_t centres = 0;            ///< N_k after merging
   std::size_t nonZeros = 0;

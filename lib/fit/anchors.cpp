@@ -90,6 +90,10 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
       }
     }
   }
+  if (cand.size() > o.maxCandidates) {
+    out.tooMany = true;
+    return out;
+  }
   Points q(static_cast<Eigen::Index>(cand.size()), 3);
   for (std::size_t r = 0; r < cand.size(); ++r) q.row(static_cast<Eigen::Index>(r)) = cand[r].transpose();
 

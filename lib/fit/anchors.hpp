@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <limits>
 #include <vector>
 
 #include <Eigen/Core>
@@ -31,6 +32,9 @@ struct AnchorOptions {
   double offsetClearance = 0.0;
   int agreeNeighbors = 8;    ///< skip when all these nearest samples put the candidate on the other side
   std::size_t maxCells = std::size_t{1} << 24;  ///< larger grids are not scanned (the level gets none)
+  /// More grid cells than this near the samples: give up at once (tooMany), so that the caller can retry
+  /// with a coarser spacing before any distance query is made.
+  std::size_t maxCandidates = std::numeric_limits<std::size_t>::max();
 };
 
 struct Anchors {
@@ -43,6 +47,7 @@ struct Anchors {
   std::size_t crowded = 0;     ///< too close to another centre of the level
   std::size_t nearOffset = 0;  ///< within offsetClearance of an offset level
   bool gridTooLarge = false;
+  bool tooMany = false;        ///< more than maxCandidates cells near the samples (nothing else computed)
 };
 
 /// Anchors on a cubic grid over `box`: `inputIndex` indexes the input points (normalised) with inward

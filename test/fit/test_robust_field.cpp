@@ -206,6 +206,10 @@ TEST_SUITE("fit") {
   }
 
   TEST_CASE("robust field: a solid with a handle gets no blob inside the loop") {
+#ifdef DUPLEXFIT_SANITIZED
+    MESSAGE("skipped in the sanitizer build (the thin-torus case covers the same code there; Release runs it)");
+    return;
+#endif
     // A ball (centre (−0.2, 0, 0), radius 0.25) and a ring (centre (0.2, 0, 0), R 0.2, r 0.05, axis y)
     // that enters it: one solid of genus 1; the loop's hole around (0.2, 0, 0) is 0.15 from both.
     const std::vector<Piece> pieces{{Piece::Sphere, {-0.2, 0.0, 0.0}, 0.25, 0.0},
@@ -226,6 +230,10 @@ TEST_SUITE("fit") {
   }
 
   TEST_CASE("robust field: a dumbbell whose neck is thinner than 2δ has exactly the truth's two offset pieces") {
+#ifdef DUPLEXFIT_SANITIZED
+    MESSAGE("skipped in the sanitizer build (the thin-torus case covers the same code there; Release runs it)");
+    return;
+#endif
     // Balls of radius 0.2 at x = ±0.3 joined by a neck of radius 0.04; δ = 0.06 inward: the exact offset
     // is two balls of radius 0.14 (the neck, thinner than 2δ, has no δ set), and f on the neck's axis is
     // the neck's radius.
