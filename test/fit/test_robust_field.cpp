@@ -176,6 +176,26 @@ TEST_SUITE("fit") {
         MESSAGE("f at the hole's centre " << inHole[0] << ", max over the hole " << inHole.maxCoeff());
         CHECK(inHole[0] < -0.1);
         CHECK(inHole.maxCoeff() < 0.0);
+        // The sign of f against the exact torus at random points of the meshing box farther than 0.02
+        // (≈ 3 sample spacings) from the surface and from the offset surface.
+        {
+          std::mt19937 rng(3);
+          std::uniform_real_distribution<double> U(-0.6, 0.6), Z(-0.2, 0.2);
+          Points q(20000, 3);
+          Eigen::VectorXd sdf(q.rows());
+          for (Eigen::Index i = 0; i < q.rows();) {
+            const Eigen::Vector3d p(U(rng), U(rng), Z(rng));
+            const double d = std::hypot(std::hypot(p.x(), p.y()) - R, p.z()) - r;
+            if (std::abs(d) < 0.02 || std::abs(d + delta) < 0.02) continue;
+            q.row(i) = p.transpose();
+            sdf[i++] = d;
+          }
+          const Eigen::VectorXd v = f.fit.field.evaluate(robustDevice(), q).values;
+          Eigen::Index wrong = 0;
+          for (Eigen::Index i = 0; i < q.rows(); ++i) wrong += (v[i] > 0.0) != (sdf[i] < 0.0) ? 1 : 0;
+          MESSAGE("sign of f wrong at " << wrong << " of " << q.rows() << " random points away from the surface");
+          CHECK(static_cast<double>(wrong) <= 0.001 * static_cast<double>(q.rows()));
+        }
         const Eigen::VectorXd onOffset = f.fit.field.evaluate(robustDevice(), torusGrid(R, r - delta, 96)).values;
         Eigen::VectorXd err = (onOffset.array() - delta).abs() / std::abs(delta);
         std::sort(err.data(), err.data() + err.size());
