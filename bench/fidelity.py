@@ -511,15 +511,21 @@ def main():
         print("fidelity.py: cannot run %s: %s" % (cfg.duplexfit, e), file=sys.stderr)
         return 2
     versions = {}
-    peer_rows = {}
-    if cfg.peer_from:
-        old = json.load(open(cfg.peer_from))
-        versions = old.get("versions", {})
+    def load_peer_rows():
+        rows = {}
+        try:
+            old = json.load(open(cfg.peer_from))
+        except (OSError, ValueError):
+            return {}, {}
         for r in old.get("runs", []):
             if r.get("peer") or r.get("truth_offset"):
-                peer_rows[(r["model"], float(r["delta"]))] = r
+                rows[(r["model"], float(r["delta"]))] = r
+        return rows, old.get("versions", {})
+
+    if cfg.peer_from:
+        _, versions = load_peer_rows()
         cfg.no_peer = True
-    cfg.show_peer = not cfg.no_peer or bool(peer_rows)
+    cfg.show_peer = not cfg.no_peer or bool(cfg.peer_from)
     if cfg.peer_from:
         cfg.vdb_available = False
     elif not cfg.no_peer:
@@ -572,7 +578,16 @@ def main():
             log("%s failed: %s" % (model, e))
             rows = [{"model": model, "delta": d, "status": "error", "errors": ["%s: %s" % (type(e).__name__, e)],
                      "ours": {}, "peer": {}, "truth_offset": {}} for d in deltas]
-        for r in rows:  # the peer's and the truth's numbers from the earlier run
+        # The peer's and the truth's numbers from the earlier (or a still running) run: waits up to an hour
+        # for that run to reach this model.
+        peer_rows = {}
+        if cfg.peer_from:
+            for _ in range(120):
+                peer_rows, _v = load_peer_rows()
+                if all((r["model"], float(r["delta"])) in peer_rows for r in rows):
+                    break
+                time.sleep(30)
+        for r in rows:
             old = peer_rows.get((r["model"], float(r["delta"])))
             if old:
                 r["peer"], r["truth_offset"] = old.get("peer", {}), old.get("truth_offset", {})

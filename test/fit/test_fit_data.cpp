@@ -39,17 +39,7 @@ FitResult fitCloud(const std::string& dir, const char* name, std::vector<double>
 std::size_t components(const Mesh& m) { return analyzeTopology(m).components; }
 
 // Points on the torus R = 0.35 with tube radius rho (axis z).
-Points torusPoints(double rho, int n) {
-  Points p(n * n, 3);
-  for (int i = 0; i < n; ++i) {
-    for (int j = 0; j < n; ++j) {
-      const double u = 2 * M_PI * (i + 0.5) / n, v = 2 * M_PI * (j + 0.37) / n;
-      p.row(i * n + j) << (0.35 + rho * std::cos(v)) * std::cos(u), (0.35 + rho * std::cos(v)) * std::sin(u),
-          rho * std::sin(v);
-    }
-  }
-  return p;
-}
+Points torusPoints(double rho, int n) { return testing::torusGrid(0.35, rho, n); }
 
 }  // namespace
 

@@ -15,6 +15,7 @@
 #include "duplexfit/preprocess.hpp"
 #include "duplexfit/surfaces.hpp"
 #include "io/io_test_util.hpp"
+#include "shapes.hpp"
 #include "test_device.hpp"
 
 using namespace duplexfit;
@@ -25,19 +26,6 @@ const Device& robustDevice() {
   static const Device ref = Device::reference();
   const Device* d = testing::openclTestDevice();
   return d != nullptr ? *d : ref;
-}
-
-// Points on the torus with major radius R, tube radius rho (axis z), on an n×n parameter grid.
-Points torusGrid(double R, double rho, int n) {
-  Points p(n * n, 3);
-  for (int i = 0; i < n; ++i) {
-    for (int j = 0; j < n; ++j) {
-      const double u = 2 * M_PI * (i + 0.5) / n, v = 2 * M_PI * (j + 0.37) / n;
-      p.row(i * n + j) << (R + rho * std::cos(v)) * std::cos(u), (R + rho * std::cos(v)) * std::sin(u),
-          rho * std::sin(v);
-    }
-  }
-  return p;
 }
 
 // A solid given as a union of simple pieces, sampled area-uniformly on its boundary: each piece offers
@@ -196,7 +184,7 @@ TEST_SUITE("fit") {
           MESSAGE("sign of f wrong at " << wrong << " of " << q.rows() << " random points away from the surface");
           CHECK(static_cast<double>(wrong) <= 0.001 * static_cast<double>(q.rows()));
         }
-        const Eigen::VectorXd onOffset = f.fit.field.evaluate(robustDevice(), torusGrid(R, r - delta, 96)).values;
+        const Eigen::VectorXd onOffset = f.fit.field.evaluate(robustDevice(), testing::torusGrid(R, r - delta, 96)).values;
         Eigen::VectorXd err = (onOffset.array() - delta).abs() / std::abs(delta);
         std::sort(err.data(), err.data() + err.size());
         const double p99 = err[static_cast<Eigen::Index>(0.99 * static_cast<double>(err.size() - 1))];

@@ -156,6 +156,18 @@ Points fibonacciSphere(int n, double radius, Points* normals) {
   return p;
 }
 
+Points torusGrid(double majorRadius, double rho, int n) {
+  Points p(n * n, 3);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      const double u = 2 * M_PI * (i + 0.5) / n, v = 2 * M_PI * (j + 0.37) / n;
+      p.row(i * n + j) << (majorRadius + rho * std::cos(v)) * std::cos(u), (majorRadius + rho * std::cos(v)) * std::sin(u),
+          rho * std::sin(v);
+    }
+  }
+  return p;
+}
+
 Points sampledTorus(int n, double majorRadius, double minorRadius, Points* normals) {
   checkCount(n, "sampledTorus");
   if (!(minorRadius > 0.0) || !(majorRadius > minorRadius)) {

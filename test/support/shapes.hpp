@@ -16,6 +16,10 @@ Points fibonacciSphere(int n, double radius, Points* normals = nullptr);
 /// n points on a torus (major radius R, minor radius r, axis z), roughly area-uniform, deterministic.
 Points sampledTorus(int n, double majorRadius, double minorRadius, Points* normals = nullptr);
 
+/// The n×n points of a regular (u, v) parameter grid on the torus with major radius R and tube radius rho
+/// (axis z), v offset by 0.37 of a step: probes of a torus-shaped level set.
+Points torusGrid(double majorRadius, double rho, int n);
+
 /// Centres of one duplex-fit level: the surface points, then their copies δ along the inward normal,
 /// then their copies σ/10 along the outward normal (3n rows in that order).
 struct LevelCentres {
