@@ -45,6 +45,14 @@ void checkOptions(const FitOptions& o) {
   }
 }
 
+// The typical sample spacing: the square root of the median point area.
+double medianSpacing(const Eigen::VectorXd& areas) {
+  if (areas.size() == 0) return 0.0;
+  std::vector<double> a(areas.data(), areas.data() + areas.size());
+  std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(a.size() / 2), a.end());
+  return std::sqrt(std::max(0.0, a[a.size() / 2]));
+}
+
 // A level's report plus its solved weights (moved into the field).
 struct LevelWork : LevelReport {
   Eigen::VectorXd weights;
@@ -110,9 +118,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     const Points outwardNormals = -nu;
     winding = std::make_unique<WindingNumber>(u, outwardNormals);
     inputIndex = std::make_unique<NeighborIndex>(u);
-    std::vector<double> a(winding->areas().data(), winding->areas().data() + winding->areas().size());
-    std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(a.size() / 2), a.end());
-    spacing = std::sqrt(std::max(0.0, a[a.size() / 2]));
+    spacing = medianSpacing(winding->areas());
     rep.secondsWinding = since(t);
   }
   double maxOffset = 0.0;
@@ -277,11 +283,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     for (const double d : deltas) minDelta = std::min(minDelta, std::abs(d));
     const Points outwardNormals = -nu;
     const Eigen::VectorXd areas = winding ? winding->areas() : estimatePointAreas(u, outwardNormals);
-    if (spacing <= 0.0) {
-      std::vector<double> a(areas.data(), areas.data() + areas.size());
-      std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(a.size() / 2), a.end());
-      spacing = std::sqrt(std::max(0.0, a[a.size() / 2]));
-    }
+    if (spacing <= 0.0) spacing = medianSpacing(areas);
     if (!inputIndex) inputIndex = std::make_unique<NeighborIndex>(u);
     const double sigmaC = std::min(fitted.back().sigma, 0.5 * minDelta);
     cr.sigma = sigmaC / norm.scale;
