@@ -112,8 +112,10 @@ struct PolygonizeResult {
 /// Each cell is split into 6 tetrahedra around its main diagonal (min to max corner), so
 /// neighbouring cells agree on face diagonals, and each tetrahedron is contoured by linear
 /// interpolation. A node counts as inside when f(node) ≥ c (a symbolic perturbation: values exactly
-/// equal to c never make ambiguous or degenerate topology, though a vertex may then sit on a node
-/// and a triangle may have zero area). Each mesh is therefore watertight, 2-manifold and
+/// equal to c never make ambiguous or degenerate topology), and a vertex is kept at least 64
+/// single-precision ulps (of the grid's largest coordinate) away from both nodes of its edge, so
+/// that a node value at or within rounding of c does not collapse the triangles around that node to
+/// zero area, also once written in single precision. Each mesh is therefore watertight, 2-manifold and
 /// consistently oriented with normals toward decreasing f (outward from {f > c}; positive
 /// signedVolume), except where the surface reaches the grid boundary: it is left open there, so pad
 /// the box by a few cells when closed meshes are needed. Vertices lie on grid edges (axis edges,

@@ -83,6 +83,11 @@ class EdgeMap {
 
 using Cell = std::array<int, 3>;
 
+/// Least distance of a vertex from either node of its edge, in single-precision ulps of the grid's
+/// largest coordinate: the meshes are written in single precision, and vertices closer to a node
+/// than a few ulps round onto each other, leaving zero-area or folded triangles around that node.
+constexpr double kMinNodeDistanceUlps = 64.0;
+
 /// The contour of one iso value over one z-range of cells, with chunk-local vertex ids.
 struct ChunkMesh {
   std::vector<std::uint64_t> keys;  ///< edge key of each local vertex
@@ -101,7 +106,14 @@ bool inPlane(std::uint64_t key, int z, std::int64_t planeNodes) {
 class Extractor {
  public:
   Extractor(const NodeStore& store, const GridSpec& grid, const std::vector<double>& isos)
-      : store_(store), isos_(isos), coords_(nodeCoordinates(grid)), table_(kuhnTable()) {}
+      : store_(store), isos_(isos), coords_(nodeCoordinates(grid)), table_(kuhnTable()) {
+    double largest = 0.0;
+    for (const auto& c : coords_) {
+      for (double x : c) largest = std::max(largest, std::abs(x));
+    }
+    minNodeDistance_ = kMinNodeDistanceUlps * largest *
+                       static_cast<double>(std::numeric_limits<float>::epsilon());
+  }
 
   /// Contours the marked cells with z index in [z0, z1): out has one entry per iso value; open
   /// collects unmarked cells that the surface enters from a contoured one.
@@ -232,14 +244,23 @@ class Extractor {
     const std::int32_t id = map.insert(key, static_cast<std::int32_t>(out.keys.size()), inserted);
     if (!inserted) return id;
     const double f0 = static_cast<double>(v[edge.from]), f1 = static_cast<double>(v[edge.to]);
-    const double s = (iso - f0) / (f1 - f0);  // f0 and f1 straddle iso, so f1 ≠ f0
-    out.keys.push_back(key);
+    // f0 and f1 straddle iso, so f1 ≠ f0. The vertex is kept minNodeDistance_ away from both
+    // nodes: a node value at or within rounding of iso would otherwise put the vertices of all its
+    // edges on or next to the node, where the triangles between them are degenerate (zero area, or
+    // folded once written in single precision). Every vertex stays strictly inside its edge, so the
+    // contour inside each tetrahedron is still an embedded triangle or quad.
+    double x0[3], x1[3], length2 = 0.0;
     for (int d = 0; d < 3; ++d) {
       const std::size_t n0 = static_cast<std::size_t>(a[d]);
       const std::size_t n1 = n0 + static_cast<std::size_t>(((edge.from ^ edge.to) >> d) & 1);
-      const double x0 = coords_[d][n0], x1 = coords_[d][n1];
-      out.xyz.push_back(x0 + s * (x1 - x0));
+      x0[d] = coords_[d][n0];
+      x1[d] = coords_[d][n1];
+      length2 += (x1[d] - x0[d]) * (x1[d] - x0[d]);
     }
+    const double margin = std::min(0.25, minNodeDistance_ / std::sqrt(length2));
+    const double s = std::clamp((iso - f0) / (f1 - f0), margin, 1.0 - margin);
+    out.keys.push_back(key);
+    for (int d = 0; d < 3; ++d) out.xyz.push_back(x0[d] + s * (x1[d] - x0[d]));
     return id;
   }
 
@@ -257,6 +278,7 @@ class Extractor {
   const std::vector<double>& isos_;
   std::array<std::vector<double>, 3> coords_;
   const KuhnTable& table_;
+  double minNodeDistance_ = 0.0;  ///< see kMinNodeDistanceUlps
 };
 
 /// Joins the chunks of one iso value, releasing them: a vertex in the plane between chunks c − 1
