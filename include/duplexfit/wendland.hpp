@@ -1,5 +1,7 @@
-// The Wendland CSRBF φ(r) = (1 − r)⁴₊(4r + 1) (docs/method.md §2) and the assembly of the level system
-// Φ_ij = φ(‖c_i − c_j‖/σ) + λδ_ij as a CSR matrix.
+// The Wendland CSRBF φ(r) = (1 − r)⁴₊(4r + 1) (docs/method.md §2) with its first two derivatives (the
+// host's scalar φ: the level matrix and the brute-force field oracle; the batched evaluation has its own
+// body in kernels/field_point.cl), and the assembly of the level system Φ_ij = φ(‖c_i − c_j‖/σ) + λδ_ij
+// as a CSR matrix.
 #pragma once
 
 #include "duplexfit/sparse.hpp"
@@ -20,6 +22,13 @@ inline double wendlandDerivative(double r) noexcept {
   if (r >= 1.0) return 0.0;
   const double s = 1.0 - r;
   return -20.0 * r * s * s * s;
+}
+
+/// φ''(r) = 20 (1 − r)² (4r − 1) on [0, 1), 0 beyond.
+inline double wendlandSecondDerivative(double r) noexcept {
+  if (r >= 1.0) return 0.0;
+  const double s = 1.0 - r;
+  return 20.0 * s * s * (4.0 * r - 1.0);
 }
 
 /// Assembles Φ + λI over the centres (#C×3) with support radius sigma: entry (i, j) is stored when

@@ -77,7 +77,7 @@ const std::vector<std::pair<std::string, std::vector<std::string>>>& programTabl
       {"blas1", {"common", "blas1"}},
       {"spmv", {"common", "spmv_csr"}},
       {"cg", {"common", "cg_fused"}},
-      {"field", {"common", "eval_field"}},
+      {"field", {"common", "field_point", "eval_field"}},
       {"precond", {"common", "precond"}},
       {"preprocess", {"common", "preprocess"}},
   };

@@ -13,6 +13,7 @@
 
 #include "duplexfit/atomic_file.hpp"
 #include "duplexfit/error.hpp"
+#include "duplexfit/wendland.hpp"
 
 namespace duplexfit {
 
@@ -21,24 +22,30 @@ namespace {
 constexpr char kMagic[8] = {'D', 'P', 'X', 'F', 'I', 'E', 'L', 'D'};
 constexpr std::uint32_t kVersion = 1;
 
-// Contribution of one centre at offset u = x − c (normalised units) to f, ∇f and H (docs/method.md §6).
+// Contribution of one centre at offset u = x − c (normalised units) to f, ∇f and H (docs/method.md §6),
+// written from φ, φ' and φ'' of the radius (chain rule: ∇φ = φ'/σ û, H = φ''/σ² ûûᵀ + φ'/(σρ)(I − ûûᵀ))
+// rather than from the kernel's expanded form, so that it is an independent oracle for it.
 struct Accumulator {
   double f = 0.0;
   Eigen::Vector3d g = Eigen::Vector3d::Zero();
   Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
   void add(const Eigen::Vector3d& u, double w, double sigma, int order) {
-    const double d2 = u.squaredNorm();
-    if (d2 >= sigma * sigma) return;
-    const double rho = std::sqrt(d2);
+    const double rho = u.norm();
     const double r = rho / sigma;
-    const double t = 1.0 - r;
-    const double t2 = t * t;
-    f += w * t2 * t2 * (4.0 * r + 1.0);
-    if (order >= 1) g += -w * 20.0 / (sigma * sigma) * t2 * t * u;
-    if (order >= 2) {
-      const double a = w * 20.0 / (sigma * sigma) * t2;
-      const double c = rho > 0.0 ? 3.0 * r / d2 : 0.0;
-      h += a * (c * u * u.transpose() - t * Eigen::Matrix3d::Identity());
+    if (r >= 1.0) return;
+    f += w * wendland(r);
+    if (order >= 1) {
+      // φ'(r)/(σρ) = −20 (1 − r)³/σ² stays finite at ρ = 0, where ∇φ = 0.
+      const double t = 1.0 - r;
+      const double radial = -20.0 * t * t * t / (sigma * sigma);
+      g += w * radial * u;
+      if (order >= 2) {
+        h += w * radial * Eigen::Matrix3d::Identity();
+        if (rho > 0.0) {
+          const Eigen::Vector3d n = u / rho;
+          h += w * (wendlandSecondDerivative(r) / (sigma * sigma) - radial) * n * n.transpose();
+        }
+      }
     }
   }
 };

@@ -1,8 +1,9 @@
 // FieldEvaluator: per-level uniform grids of the field's centres (cells at least σ_k wide, so the 27
 // cells around a query hold every centre within the support), uploaded once; batched evaluation by the
-// eval_field kernels or by the same loops in C++ on the reference device.
+// eval_field kernels or, on the reference device, by the same body (kernels/field_point.cl) in C++.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include "device/cl_check.hpp"
@@ -14,6 +15,10 @@
 namespace duplexfit {
 
 namespace detail {
+
+namespace kernels {
+#include "field_point.cl"  // NOLINT(bugprone-suspicious-include): the body shared with OpenCL
+}  // namespace kernels
 
 struct EvaluatorImpl {
   Device device;
@@ -90,76 +95,17 @@ void addLevel(detail::EvaluatorImpl& e, const FieldLevel& level) {
   ++e.levels;
 }
 
-// The kernel's loops in C++ (the reference twin of eval_point in kernels/eval_field.cl).
+// The reference device's twin of the eval_field kernels: the same body (kernels/field_point.cl,
+// compiled here as C++), one query per loop iteration.
 template <typename T>
 void evalReference(const detail::EvaluatorImpl& e, const std::vector<T>& params, const std::vector<T>& packed,
                    const T* q, std::size_t nq, int k, T* out) {
 #pragma omp parallel for schedule(dynamic, 1024)
   for (std::ptrdiff_t qi = 0; qi < static_cast<std::ptrdiff_t>(nq); ++qi) {
-    const T x = q[3 * qi], y = q[3 * qi + 1], z = q[3 * qi + 2];
-    T f = static_cast<T>(e.f0), gx = 0, gy = 0, gz = 0, hxx = 0, hxy = 0, hxz = 0, hyy = 0, hyz = 0, hzz = 0;
-    for (cl_uint l = 0; l < e.levels; ++l) {
-      const T* p = &params[6 * l];
-      const cl_uint* d = &e.dims[5 * l];
-      const int nx = static_cast<int>(d[0]), ny = static_cast<int>(d[1]), nz = static_cast<int>(d[2]);
-      const int cx = static_cast<int>(std::floor((x - p[0]) * p[3]));
-      const int cy = static_cast<int>(std::floor((y - p[1]) * p[3]));
-      const int cz = static_cast<int>(std::floor((z - p[2]) * p[3]));
-      if (cx < -1 || cy < -1 || cz < -1 || cx > nx || cy > ny || cz > nz) continue;
-      const T sigma = p[4], invSigma = p[5], s2 = sigma * sigma;
-      const T hScale = T(20) * invSigma * invSigma;
-      for (int iz = std::max(cz - 1, 0); iz <= std::min(cz + 1, nz - 1); ++iz) {
-        for (int iy = std::max(cy - 1, 0); iy <= std::min(cy + 1, ny - 1); ++iy) {
-          const std::size_t row = d[3] + static_cast<std::size_t>((iz * ny + iy) * nx);
-          const int x0 = std::max(cx - 1, 0), x1 = std::min(cx + 1, nx - 1);
-          if (x0 > x1) continue;
-          const std::size_t b = e.cellStart[row + static_cast<std::size_t>(x0)] + d[4];
-          const std::size_t en = e.cellStart[row + static_cast<std::size_t>(x1) + 1] + d[4];
-          for (std::size_t j = b; j < en; ++j) {
-            const T ux = x - packed[4 * j], uy = y - packed[4 * j + 1], uz = z - packed[4 * j + 2];
-            const T d2 = ux * ux + uy * uy + uz * uz;
-            if (d2 >= s2) continue;
-            const T w = packed[4 * j + 3];
-            const T rho = std::sqrt(d2);
-            const T r = rho * invSigma;
-            const T t = T(1) - r;
-            const T t2 = t * t;
-            f += w * t2 * t2 * (T(4) * r + T(1));
-            if (k >= 4) {
-              const T g = -w * hScale * t2 * t;
-              gx += g * ux;
-              gy += g * uy;
-              gz += g * uz;
-            }
-            if (k >= 10) {
-              const T a = w * hScale * t2;
-              const T c = rho > T(0) ? T(3) * r / d2 : T(0);
-              hxx += a * (c * ux * ux - t);
-              hyy += a * (c * uy * uy - t);
-              hzz += a * (c * uz * uz - t);
-              hxy += a * c * ux * uy;
-              hxz += a * c * ux * uz;
-              hyz += a * c * uy * uz;
-            }
-          }
-        }
-      }
-    }
-    T* o = out + static_cast<std::ptrdiff_t>(k) * qi;
-    o[0] = f;
-    if (k >= 4) {
-      o[1] = gx;
-      o[2] = gy;
-      o[3] = gz;
-    }
-    if (k >= 10) {
-      o[4] = hxx;
-      o[5] = hxy;
-      o[6] = hxz;
-      o[7] = hyy;
-      o[8] = hyz;
-      o[9] = hzz;
-    }
+    T acc[10];
+    detail::kernels::dpx_field_point<T>(q[3 * qi], q[3 * qi + 1], q[3 * qi + 2], e.levels, params.data(), e.dims.data(),
+                                e.cellStart.data(), packed.data(), static_cast<T>(e.f0), k, acc);
+    std::copy(acc, acc + k, out + static_cast<std::ptrdiff_t>(k) * qi);
   }
 }
 
