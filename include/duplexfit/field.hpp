@@ -92,13 +92,24 @@ struct EvaluatorImpl;
 }
 
 /// A field (or its first `levelCount` levels) uploaded once to a device with per-level uniform grids,
-/// for many batched evaluations (polygonization, slicing, the fit's right-hand sides).
+/// for many batched evaluations (polygonization, slicing, the fit's right-hand sides). A fit builds one
+/// and appends each level as it is solved, then hands it on to extraction (FitResult::evaluator).
 class FieldEvaluator {
  public:
   /// @param levelCount how many levels to use (from the coarsest); −1: all
   /// @throws DeviceError (precision unavailable, buffers above the device's max allocation)
   FieldEvaluator(const Device& device, const ImplicitField& field, Precision precision = Precision::Float,
                  int levelCount = -1);
+  /// An evaluator of the constant field f0 (normalised units) with no levels yet: see appendLevel.
+  /// @throws DeviceError (precision unavailable)
+  FieldEvaluator(const Device& device, const Normalization& normalization, double f0,
+                 Precision precision = Precision::Float);
+  /// Adds a finer level (normalised coordinates, like ImplicitField's levels): only its centres and
+  /// grid are uploaded; evaluation then sums it too. Results are identical to an evaluator built from
+  /// the whole field at once. @throws DeviceError (buffers above the device's max allocation)
+  void appendLevel(const FieldLevel& level);
+  /// Levels summed so far.
+  int levelCount() const noexcept;
   FieldEvaluator(FieldEvaluator&&) noexcept;
   FieldEvaluator& operator=(FieldEvaluator&&) noexcept;
   ~FieldEvaluator();

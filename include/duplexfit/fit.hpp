@@ -3,6 +3,7 @@
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -137,6 +138,9 @@ struct FitReport {
 struct FitResult {
   ImplicitField field;
   FitReport report;
+  /// The evaluator the fit built (every level of `field`, on the fit's device and precision): pass it
+  /// to extractSurfaces instead of uploading the field again. Null for results not made by fit().
+  std::shared_ptr<const FieldEvaluator> evaluator;
 };
 
 /// A progress event: stage ("hierarchy", "constraints", "assembly", "solve", "residual", "errors"),

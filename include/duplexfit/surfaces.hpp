@@ -44,4 +44,10 @@ struct SurfaceResult {
 SurfaceResult extractSurfaces(const Device& device, const ImplicitField& field, const std::vector<double>& isoValues,
                               const SurfaceOptions& options = {}, const PolygonizeProgress& progress = {});
 
+/// The same with an evaluator already built for `field` (FitResult::evaluator: no second upload); its
+/// device and precision are used, options.precision is ignored.
+SurfaceResult extractSurfaces(const FieldEvaluator& evaluator, const ImplicitField& field,
+                              const std::vector<double>& isoValues, const SurfaceOptions& options = {},
+                              const PolygonizeProgress& progress = {});
+
 }  // namespace duplexfit

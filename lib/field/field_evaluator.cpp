@@ -30,8 +30,13 @@ struct EvaluatorImpl {
   std::vector<cl_uint> dims;            // 5 per level: nx, ny, nz, cell_start offset, centre offset
   std::vector<cl_uint> cellStart;       // per level nx*ny*nz + 1 prefix offsets
   std::vector<double> packed;           // x, y, z, w per centre, sorted by cell within each level
-  std::vector<float> paramsF, packedF;  // float copies for the reference device in float
-  cl::Buffer paramsBuf, dimsBuf, cellStartBuf, centresBuf;
+  std::vector<float> paramsF, packedF;  // float copies (precision float)
+  /// A device copy of one host array: `capacity` elements allocated, the first `uploaded` current.
+  struct DeviceArray {
+    cl::Buffer buffer;
+    std::size_t capacity = 0, uploaded = 0;
+  };
+  DeviceArray paramsBuf, dimsBuf, cellStartBuf, centresBuf;
 
   explicit EvaluatorImpl(const Device& d) : device(d) {}
 };
@@ -143,8 +148,8 @@ std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u,
         const cl::Buffer ob = detail::createBuffer(e.device, out.size() * sizeof(T), "field evaluation results");
         const char* name = k == 1 ? "eval_field_value" : k == 4 ? "eval_field_gradient" : "eval_field_hessian";
         cl::Kernel& kern = impl.kernel("field", e.precision, name);
-        detail::setArgs(kern, name, static_cast<cl_uint>(m), qb, e.levels, e.paramsBuf, e.dimsBuf, e.cellStartBuf,
-                        e.centresBuf);
+        detail::setArgs(kern, name, static_cast<cl_uint>(m), qb, e.levels, e.paramsBuf.buffer, e.dimsBuf.buffer,
+                        e.cellStartBuf.buffer, e.centresBuf.buffer);
         detail::setRealArg(kern, 7, e.f0, e.precision, name);
         detail::setArg(kern, 8, ob, name);
         impl.launch(kern, m, impl.params().workGroup, name);
@@ -158,34 +163,75 @@ std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u,
   return result;
 }
 
+/// Brings the device copy of `host` up to date: only the elements appended since the last call are
+/// written, into the same buffer while it has room; otherwise a new buffer of `reserve` × the size
+/// (clipped to the device's largest allocation) receives everything.
+template <typename T>
+void syncArray(const Device& device, detail::EvaluatorImpl::DeviceArray& a, const std::vector<T>& host, double reserve,
+               const std::string& what) {
+  auto& queue = device.impl()->queue();
+  if (host.size() > a.capacity || a.capacity == 0) {
+    const std::size_t need = std::max<std::size_t>(host.size(), 1);
+    const std::size_t limit = std::max<std::size_t>(need, static_cast<std::size_t>(device.maxAllocBytes() / sizeof(T)));
+    const std::size_t capacity = std::min(limit, std::max(need, static_cast<std::size_t>(reserve * static_cast<double>(need))));
+    a.buffer = detail::createBuffer(device, capacity * sizeof(T), what);
+    a.capacity = capacity;
+    a.uploaded = 0;
+  }
+  if (host.size() > a.uploaded) {
+    DUPLEXFIT_CL_CHECK(queue.enqueueWriteBuffer(a.buffer, CL_TRUE, a.uploaded * sizeof(T),
+                                                (host.size() - a.uploaded) * sizeof(T), host.data() + a.uploaded));
+  }
+  a.uploaded = host.size();
+}
+
+/// Makes the float copies and the device buffers current after levels were added.
+void sync(detail::EvaluatorImpl& e, double reserve) {
+  if (e.precision == Precision::Float) {
+    e.paramsF.insert(e.paramsF.end(), e.params.begin() + static_cast<std::ptrdiff_t>(e.paramsF.size()), e.params.end());
+    e.packedF.insert(e.packedF.end(), e.packed.begin() + static_cast<std::ptrdiff_t>(e.packedF.size()), e.packed.end());
+  }
+  if (e.device.isReference()) return;
+  if (e.precision == Precision::Float) {
+    syncArray(e.device, e.paramsBuf, e.paramsF, reserve, "field level parameters");
+    syncArray(e.device, e.centresBuf, e.packedF, reserve, "field centres");
+  } else {
+    syncArray(e.device, e.paramsBuf, e.params, reserve, "field level parameters");
+    syncArray(e.device, e.centresBuf, e.packed, reserve, "field centres");
+  }
+  syncArray(e.device, e.dimsBuf, e.dims, reserve, "field grid sizes");
+  syncArray(e.device, e.cellStartBuf, e.cellStart, reserve, "field grid cells");
+}
+
 }  // namespace
 
 FieldEvaluator::FieldEvaluator(const Device& device, const ImplicitField& field, Precision precision, int levelCount)
+    : FieldEvaluator(device, field.normalization(), field.f0(), precision) {
+  auto& e = *impl_;
+  const int total = static_cast<int>(field.levels().size());
+  const int use = levelCount < 0 ? total : std::min(levelCount, total);
+  for (int k = 0; k < use; ++k) addLevel(e, field.levels()[static_cast<std::size_t>(k)]);
+  sync(e, 1.0);
+}
+
+FieldEvaluator::FieldEvaluator(const Device& device, const Normalization& normalization, double f0,
+                               Precision precision)
     : impl_(std::make_unique<detail::EvaluatorImpl>(device)) {
   device.requirePrecision(precision);
   auto& e = *impl_;
   e.precision = precision;
-  e.norm = field.normalization();
-  e.f0 = field.f0();
-  const int total = static_cast<int>(field.levels().size());
-  const int use = levelCount < 0 ? total : std::min(levelCount, total);
-  for (int k = 0; k < use; ++k) addLevel(e, field.levels()[static_cast<std::size_t>(k)]);
-  if (e.cellStart.empty()) e.cellStart.push_back(0);
-  if (device.isReference()) {
-    if (precision == Precision::Float) {
-      e.paramsF.assign(e.params.begin(), e.params.end());
-      e.packedF.assign(e.packed.begin(), e.packed.end());
-    }
-    return;
-  }
-  detail::dispatch(precision, [&](auto zero) {
-    using T = decltype(zero);
-    e.paramsBuf = uploadArray(device, std::vector<T>(e.params.begin(), e.params.end()), "field level parameters");
-    e.centresBuf = uploadArray(device, std::vector<T>(e.packed.begin(), e.packed.end()), "field centres");
-  });
-  e.dimsBuf = uploadArray(device, e.dims, "field grid sizes");
-  e.cellStartBuf = uploadArray(device, e.cellStart, "field grid cells");
+  e.norm = normalization;
+  e.f0 = f0;
 }
+
+void FieldEvaluator::appendLevel(const FieldLevel& level) {
+  addLevel(*impl_, level);
+  // Room for about as much again: the levels of a fit grow geometrically, so each buffer is
+  // reallocated O(log) times and otherwise only the new level is written.
+  sync(*impl_, 2.0);
+}
+
+int FieldEvaluator::levelCount() const noexcept { return static_cast<int>(impl_->levels); }
 
 FieldEvaluator::FieldEvaluator(FieldEvaluator&&) noexcept = default;
 FieldEvaluator& FieldEvaluator::operator=(FieldEvaluator&&) noexcept = default;

@@ -162,6 +162,9 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   };
 
   std::vector<FieldLevel> fitted;
+  // f_k as the levels are solved: one evaluator, each level appended once (right-hand sides, the offset
+  // correction, E_0), handed on to extraction with the result.
+  auto evaluator = std::make_shared<FieldEvaluator>(device, norm, -1.0, options.precision);
   std::vector<Points> finestOffsetPoints(deltas.size());  // valid offset points of level M, per offset
   bool finestIsInput = false;              // the last level solved was level M (its points are the input)
   double e0Centres = 0.0;                  // max |f| at input points that are level-M centres
@@ -234,10 +237,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     t = Clock::now();
     report(progress, {"residual", k, levels, 0, 0.0, ""});
     Eigen::VectorXd fPrev = Eigen::VectorXd::Constant(c.centres.rows(), -1.0);
-    if (!fitted.empty()) {
-      const ImplicitField partial(norm, -1.0, fitted, rep.offsets, bounds);
-      fPrev = FieldEvaluator(device, partial, options.precision).evaluateNormalized(c.centres);
-    }
+    if (!fitted.empty()) fPrev = evaluator->evaluateNormalized(c.centres);
     const Eigen::VectorXd b = c.targets - fPrev;
     lr.maxResidualBefore = (b.size() > 0 ? b.cwiseAbs().maxCoeff() : 0.0) / norm.scale;
     lr.secondsResidual = since(t);
@@ -250,6 +250,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     const CsrMatrix a = solveLevel(c.centres, sigma, options.smoothing * k, b, k, lr);
 
     fitted.push_back(FieldLevel{sigma, c.centres, std::move(lr.weights)});
+    evaluator->appendLevel(fitted.back());
     rep.levelReports.push_back(lr);
     if (k == levels) {
       // E_δ (§8.1) at the finest level's valid offset points: there b − A·w = t − f_M(c) exactly, so
@@ -288,8 +289,6 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     const double sigmaC = std::min(fitted.back().sigma, 0.5 * minDelta);
     cr.sigma = sigmaC / norm.scale;
     if (sigmaC >= 2.0 * spacing) {
-      const ImplicitField partial(norm, -1.0, fitted, rep.offsets, bounds);
-      const FieldEvaluator evaluator(device, partial, options.precision);
       // Start from every companion p + δν, then Newton steps onto f = δ (each step at most |δ|/4).
       std::vector<Eigen::Index> source;
       for (Eigen::Index i = 0; i < u.rows(); ++i) {
@@ -307,7 +306,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
       }
       auto sample = [&](const Points& xn, Eigen::VectorXd& fn, Points& g) {
         const Points world = ((xn / norm.scale).rowwise() + norm.centre.transpose()).eval();
-        FieldSamples s = evaluator.evaluate(world, FieldDerivatives::Gradient);
+        FieldSamples s = evaluator->evaluate(world, FieldDerivatives::Gradient);
         fn = s.values * norm.scale;
         g = std::move(s.gradients);
       };
@@ -376,6 +375,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
         cr.solve = lw.solve;
         cr.nonZeros = lw.nonZeros;
         fitted.push_back(FieldLevel{sigmaC, std::move(centres), std::move(lw.weights)});
+        evaluator->appendLevel(fitted.back());
         cr.applied = true;
         finestIsInput = false;  // E_0 is evaluated again below, with the corrected field
       }
@@ -385,10 +385,9 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   ImplicitField field(norm, -1.0, std::move(fitted), rep.offsets, bounds);
   if (rep.correction.applied) {
     // E_δ again at the finest level's valid offset points, now with the correction.
-    const FieldEvaluator ev(device, field, options.precision);
     for (std::size_t j = 0; j < deltas.size(); ++j) {
       if (finestOffsetPoints[j].rows() == 0) continue;
-      const Eigen::VectorXd v = ev.evaluateNormalized(finestOffsetPoints[j]);
+      const Eigen::VectorXd v = evaluator->evaluateNormalized(finestOffsetPoints[j]);
       rep.eDelta[j] = (v.array() - deltas[j]).abs().maxCoeff() / norm.scale;
     }
   }
@@ -405,12 +404,12 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     rest = points.positions();
   }
   if (rest.rows() > 0) {
-    const Eigen::VectorXd f0 = FieldEvaluator(device, field, options.precision).evaluate(rest).values;
+    const Eigen::VectorXd f0 = evaluator->evaluate(rest).values;
     rep.e0 = std::max(rep.e0, f0.cwiseAbs().maxCoeff());
   }
   if (rep.eDelta.size() != deltas.size()) rep.eDelta.assign(deltas.size(), 0.0);  // stopped early
   rep.secondsTotal = since(start);
-  return FitResult{std::move(field), std::move(rep)};
+  return FitResult{std::move(field), std::move(rep), std::move(evaluator)};
 }
 
 }  // namespace duplexfit

@@ -43,9 +43,20 @@ GridSpec surfaceGrid(const ImplicitField& field, const std::vector<double>& isoV
 SurfaceResult extractSurfaces(const Device& device, const ImplicitField& field, const std::vector<double>& isoValues,
                               const SurfaceOptions& options, const PolygonizeProgress& progress) {
   if (isoValues.empty()) throw InvalidArgument("surface extraction: no iso values given");
+  const FieldEvaluator evaluator(device, field, options.precision);
+  return extractSurfaces(evaluator, field, isoValues, options, progress);
+}
+
+SurfaceResult extractSurfaces(const FieldEvaluator& evaluator, const ImplicitField& field,
+                              const std::vector<double>& isoValues, const SurfaceOptions& options,
+                              const PolygonizeProgress& progress) {
+  if (isoValues.empty()) throw InvalidArgument("surface extraction: no iso values given");
+  if (evaluator.levelCount() != static_cast<int>(field.levels().size())) {
+    throw InvalidArgument("surface extraction: the evaluator holds " + std::to_string(evaluator.levelCount()) +
+                          " levels, the field " + std::to_string(field.levels().size()));
+  }
   SurfaceResult out;
   out.grid = surfaceGrid(field, isoValues, options);
-  const FieldEvaluator evaluator(device, field, options.precision);
   const FieldSampler sampler = [&evaluator](const Points& queries, Eigen::VectorXd& values) {
     values = evaluator.evaluate(queries).values;
   };

@@ -112,6 +112,43 @@ TEST_SUITE("fit") {
     for (Eigen::Index i = 0; i < q.rows(); ++i) CHECK(v[i] == doctest::Approx(first.value(q.row(i).transpose())));
   }
 
+  TEST_CASE("field: an evaluator grown by appendLevel equals one built from the whole field") {
+    // Levels of growing size, so that the device buffers are reallocated (and, between reallocations,
+    // only the new level's tail is written): every intermediate state must equal a fresh evaluator of
+    // the same levels, bit for bit, on the reference device and on OpenCL, in both precisions.
+    const ImplicitField base = randomField(11);
+    std::vector<FieldLevel> levels = base.levels();
+    FieldLevel small;  // a 4th level smaller than the previous one: written into the existing buffers
+    small.sigma = 0.05;
+    small.centres = base.levels()[2].centres.topRows(30) * 0.9;
+    small.weights = base.levels()[2].weights.head(30);
+    levels.push_back(small);
+    const ImplicitField f(base.normalization(), base.f0(), levels, base.offsets(), base.bounds());
+    const Points q = randomQueries(f, 777, 12);
+    std::vector<Device> devices{Device::reference()};
+    if (const Device* d = testing::openclTestDevice()) devices.push_back(*d);
+    for (const Device& d : devices) {
+      for (const Precision p : {Precision::Float, Precision::Double}) {
+        if (p == Precision::Double && !d.supportsDouble()) continue;
+        CAPTURE(d.info().spec);
+        CAPTURE(precisionName(p));
+        FieldEvaluator grown(d, f.normalization(), f.f0(), p);
+        CHECK(grown.levelCount() == 0);
+        CHECK(grown.evaluate(q).values.cwiseEqual(f.f0() / f.normalization().scale).all());
+        for (int k = 1; k <= 4; ++k) {
+          grown.appendLevel(f.levels()[static_cast<std::size_t>(k - 1)]);
+          CHECK(grown.levelCount() == k);
+          const FieldEvaluator fresh(d, f, p, k);
+          const FieldSamples a = grown.evaluate(q, FieldDerivatives::Hessian);
+          const FieldSamples b = fresh.evaluate(q, FieldDerivatives::Hessian);
+          CHECK(a.values == b.values);
+          CHECK(a.gradients == b.gradients);
+          CHECK(a.hessians == b.hessians);
+        }
+      }
+    }
+  }
+
   TEST_CASE("field: save and load round trip evaluates identically; corrupt files are rejected") {
     const ImplicitField f = randomField(7);
     std::stringstream buffer;
