@@ -14,6 +14,7 @@
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/neighbors.hpp"
+#include "field/wendland_detail.hpp"
 
 namespace duplexfit {
 
@@ -74,7 +75,9 @@ std::size_t estimateNonZeros(const NeighborIndex& index, const Points& centres, 
 
 }  // namespace
 
-CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
+namespace {
+
+void checkAssemblyArguments(const Points& centres, double sigma, double lambda) {
   if (!(sigma > 0.0) || !std::isfinite(sigma)) {
     throw InvalidArgument("assembleWendland: sigma must be positive and finite, got " +
                           std::to_string(sigma));
@@ -88,7 +91,12 @@ CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
                           ")");
   }
   checkCentres(centres);
+}
 
+/// The assembly over an index of `centres` (rowOf empty) or of a superset of them (rowOf maps each
+/// indexed point to its centre row, −1 for points that are not centres).
+CsrMatrix assemble(const Points& centres, double sigma, double lambda, const NeighborIndex& index,
+                   const std::vector<Index>& rowOf) {
   const auto n = static_cast<Index>(centres.rows());
   CsrMatrix a;
   a.rows = n;
@@ -96,7 +104,6 @@ CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
   a.rowPtr.assign(static_cast<std::size_t>(n) + 1, 0);
   if (n == 0) return a;
 
-  const NeighborIndex index(centres);
   const std::size_t reserve = estimateNonZeros(index, centres, sigma);
   try {
     a.colIdx.reserve(reserve);
@@ -105,15 +112,34 @@ CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
     // The estimate's margin may not fit where the matrix itself does: grow as needed instead.
   }
   const double diagonal = 1.0 + lambda;
+  const bool mapped = !rowOf.empty();
+  auto columnOf = [&](Index indexed) { return mapped ? rowOf[static_cast<std::size_t>(indexed)] : indexed; };
 
   Points block;
+  std::vector<std::int64_t> rowStart;
   for (Index start = 0; start < n; start += std::min(kChunkRows, n - start)) {
     const Index len = std::min(kChunkRows, n - start);
     block = centres.middleRows(start, len);
     const NeighborLists lists = index.radiusSearch(block, sigma);
 
+    // Entries per row (neighbours that are centres), as offsets into this chunk's part of the matrix.
+    rowStart.assign(static_cast<std::size_t>(len) + 1, 0);
+    if (mapped) {
+#pragma omp parallel for schedule(static)
+      for (Index i = 0; i < len; ++i) {
+        std::int64_t count = 0;
+        for (auto k = lists.offsets[static_cast<std::size_t>(i)]; k < lists.offsets[static_cast<std::size_t>(i) + 1]; ++k) {
+          count += columnOf(lists.indices[static_cast<std::size_t>(k)]) >= 0 ? 1 : 0;
+        }
+        rowStart[static_cast<std::size_t>(i) + 1] = count;
+      }
+      for (std::size_t i = 0; i < static_cast<std::size_t>(len); ++i) rowStart[i + 1] += rowStart[i];
+    } else {
+      rowStart.assign(lists.offsets.begin(), lists.offsets.end());
+    }
+
     const std::int64_t base = a.rowPtr[static_cast<std::size_t>(start)];
-    const std::int64_t total = base + lists.offsets.back();
+    const std::int64_t total = base + rowStart.back();
     if (total > kMaxNonZeros) {
       throw InvalidArgument("assembleWendland: more than 2^31 - 1 non-zeros (sigma " +
                             std::to_string(sigma) + " is too large for " + std::to_string(n) +
@@ -121,7 +147,7 @@ CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
     }
     for (Index i = 0; i < len; ++i) {
       a.rowPtr[static_cast<std::size_t>(start + i) + 1] =
-          static_cast<Index>(base + lists.offsets[static_cast<std::size_t>(i) + 1]);
+          static_cast<Index>(base + rowStart[static_cast<std::size_t>(i) + 1]);
     }
     a.colIdx.resize(static_cast<std::size_t>(total));
     a.values.resize(static_cast<std::size_t>(total));
@@ -137,13 +163,14 @@ CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
         try {
           const auto from = static_cast<std::size_t>(lists.offsets[static_cast<std::size_t>(i)]);
           const auto to = static_cast<std::size_t>(lists.offsets[static_cast<std::size_t>(i) + 1]);
-          scratch.resize(to - from);
+          scratch.clear();
           for (std::size_t k = from; k < to; ++k) {
-            scratch[k - from] = Entry{lists.indices[k], lists.distances[k]};
+            const Index col = columnOf(lists.indices[k]);
+            if (col >= 0) scratch.push_back(Entry{col, lists.distances[k]});
           }
           sortByColumn(scratch.data(), scratch.data() + scratch.size());
           const Index row = start + i;
-          const auto out = static_cast<std::size_t>(base) + from;
+          const auto out = static_cast<std::size_t>(base + rowStart[static_cast<std::size_t>(i)]);
           Index* col = a.colIdx.data() + out;
           double* val = a.values.data() + out;
           for (std::size_t k = 0; k < scratch.size(); ++k) {
@@ -160,5 +187,27 @@ CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
   }
   return a;
 }
+
+}  // namespace
+
+CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
+  checkAssemblyArguments(centres, sigma, lambda);
+  const NeighborIndex index(centres);
+  return assemble(centres, sigma, lambda, index, {});
+}
+
+namespace detail {
+
+CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda, const NeighborIndex& superset,
+                           const std::vector<Index>& rowOf) {
+  checkAssemblyArguments(centres, sigma, lambda);
+  if (rowOf.size() != superset.size()) {
+    throw InvalidArgument("assembleWendland: the row map has " + std::to_string(rowOf.size()) +
+                          " entries for an index of " + std::to_string(superset.size()) + " points");
+  }
+  return assemble(centres, sigma, lambda, superset, rowOf);
+}
+
+}  // namespace detail
 
 }  // namespace duplexfit

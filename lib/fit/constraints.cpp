@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <limits>
 #include <sstream>
+#include <string>
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/neighbors.hpp"
@@ -159,7 +160,13 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
     if (!options.dropZeroNormalPoints || normals.row(i).squaredNorm() > 0.0) surfaceRows.push_back(i);
   }
-  const NeighborIndex index(points);
+  std::unique_ptr<NeighborIndex> ownIndex;
+  if (options.pointsIndex == nullptr) ownIndex = std::make_unique<NeighborIndex>(points);
+  const NeighborIndex& index = options.pointsIndex != nullptr ? *options.pointsIndex : *ownIndex;
+  if (index.size() != static_cast<std::size_t>(points.rows())) {
+    throw InvalidArgument("buildConstraints: the given index holds " + std::to_string(index.size()) + " points, not " +
+                          std::to_string(points.rows()));
+  }
 
   // Blocks in priority order (surface, offsets, off-surface, then the medial points of both); each row
   // has its own target.
@@ -222,8 +229,8 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   }
   std::vector<char> keep(static_cast<std::size_t>(total), 1);
   if (options.mergeDistance > 0.0 && total > 0) {
-    const NeighborIndex allIndex(all);
-    const NeighborLists close = allIndex.radiusSearch(all, options.mergeDistance);
+    out.candidateIndex = std::make_unique<NeighborIndex>(all);
+    const NeighborLists close = out.candidateIndex->radiusSearch(all, options.mergeDistance);
     for (Eigen::Index i = 0; i < total; ++i) {
       const auto ui = static_cast<std::size_t>(i);
       for (auto e = close.offsets[ui]; e < close.offsets[ui + 1]; ++e) {
@@ -267,9 +274,11 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
     }
     std::sort(order.begin(), order.end());
   }
+  if (out.candidateIndex) out.candidateRow.assign(static_cast<std::size_t>(total), -1);
   Eigen::Index r = 0;
   for (const auto& entry : order) {
     const Eigen::Index i = entry.second;
+    if (out.candidateIndex) out.candidateRow[static_cast<std::size_t>(i)] = static_cast<Index>(r);
     out.centres.row(r) = all.row(i);
     out.targets[r] = targets[i];
     const int b = blockOf[static_cast<std::size_t>(i)];

@@ -3,10 +3,12 @@
 // medial surface with their true distance as target.
 #pragma once
 
+#include <memory>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "duplexfit/neighbors.hpp"
 #include "duplexfit/types.hpp"
 
 namespace duplexfit::detail {
@@ -17,13 +19,16 @@ struct ConstraintOptions {
   /// +1: off-surface points along +ν (inside), −1: along −ν (outside), 0: none, 2: both sides
   int offSurfaceSide = -1;
   double validityTolerance = 1e-2;  ///< η
-  double mergeDistance = 0.0;       ///< 1e-6 σ_k
+  double mergeDistance = 0.0;       ///< FitOptions::mergeDistance (1e-2) × σ_k
   bool dropZeroNormalPoints = false;
   /// Also reject a companion q on the wrong side of its nearest other point's tangent plane (FitOptions::sideTest).
   bool tangentSideTest = false;
   /// Move companions rejected by the distance test onto the medial surface (FitOptions::medialConstraints).
   bool medial = false;
   double minMedialFraction = 0.1;  ///< ... kept when moved back to at least this fraction of the step
+  /// An index of exactly `points` to search instead of building one (the fit's index of its input at
+  /// the finest level); null: build one.
+  const NeighborIndex* pointsIndex = nullptr;
 };
 
 struct LevelConstraints {
@@ -41,6 +46,12 @@ struct LevelConstraints {
   /// indices of surface points that were merged away or dropped (for E_0).
   std::vector<std::pair<Eigen::Index, Eigen::Index>> surfaceCentres;
   std::vector<Eigen::Index> surfaceNotCentres;
+  /// The index the merge searched: every candidate before the merge (a superset of `centres`), with
+  /// candidateRow[i] the centre row of candidate i or −1 when it was merged away; null when nothing
+  /// was merged (mergeDistance 0). The level's assembly searches it instead of a new index
+  /// (detail::assembleWendland with a superset).
+  std::unique_ptr<NeighborIndex> candidateIndex;
+  std::vector<Index> candidateRow;
 };
 
 /// The offsets in input units (fractions of `side` when `relative`), each checked: non-zero and smaller

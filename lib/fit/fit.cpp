@@ -14,6 +14,7 @@
 #include "duplexfit/wendland.hpp"
 #include "duplexfit/neighbors.hpp"
 #include "duplexfit/winding.hpp"
+#include "field/wendland_detail.hpp"
 #include "fit/anchors.hpp"
 #include "fit/constraints.hpp"
 #include "fit/hierarchy.hpp"
@@ -129,11 +130,15 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
 
   // Assembles Φ + λI for `centres`, solves it by PCG on the device from b, fills the level report (non-zeros,
   // solve statistics, times) and leaves the weights in lr.weights; returns the matrix.
+  // With `superset` (the constraints' merge index, when it holds every centre) the assembly searches it
+  // instead of building another k-d tree; the matrix is the same.
   auto solveLevel = [&](const Points& centres, double sigma, double lambda, const Eigen::VectorXd& b, int k,
-                        LevelWork& lr) {
+                        LevelWork& lr, const detail::LevelConstraints* superset) {
     auto t0 = Clock::now();
     report(progress, {"assembly", k, levels, 0, 0.0, std::to_string(centres.rows()) + " centres"});
-    CsrMatrix a = assembleWendland(centres, sigma, lambda);
+    CsrMatrix a = superset != nullptr ? detail::assembleWendland(centres, sigma, lambda, *superset->candidateIndex,
+                                                                 superset->candidateRow)
+                                      : assembleWendland(centres, sigma, lambda);
     lr.nonZeros = a.nonZeros();
     lr.secondsAssembly = since(t0);
 
@@ -187,7 +192,14 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     co.dropZeroNormalPoints = options.dropZeroNormalPoints;
     co.tangentSideTest = options.sideTest;
     co.medial = options.medialConstraints;
+    if (k == levels) {
+      // The finest level's points are the input: search the fit's index of it (built here when the
+      // anchors did not need it, and kept for the offset correction).
+      if (!inputIndex) inputIndex = std::make_unique<NeighborIndex>(u);
+      co.pointsIndex = inputIndex.get();
+    }
     detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals, co);
+    const Eigen::Index mergedCentres = c.centres.rows();  // before any anchors
     lr.offsetMedial = c.offsetMedial;
     lr.offSurfaceMedial = c.offSurfaceMedial;
     if (k <= lastAnchorLevel) {
@@ -247,7 +259,9 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
       break;
     }
 
-    const CsrMatrix a = solveLevel(c.centres, sigma, options.smoothing * k, b, k, lr);
+    // Anchors were appended after the merge: the merge index does not hold them.
+    const bool reuseIndex = c.candidateIndex && c.centres.rows() == mergedCentres;
+    const CsrMatrix a = solveLevel(c.centres, sigma, options.smoothing * k, b, k, lr, reuseIndex ? &c : nullptr);
 
     fitted.push_back(FieldLevel{sigma, c.centres, std::move(lr.weights)});
     evaluator->appendLevel(fitted.back());
@@ -371,7 +385,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
         lw.level = levels + 1;
         lw.sigma = sigmaC / norm.scale;
         lw.centres = cr.points;
-        const CsrMatrix a = solveLevel(centres, sigmaC, 0.0, b, levels + 1, lw);
+        const CsrMatrix a = solveLevel(centres, sigmaC, 0.0, b, levels + 1, lw, nullptr);
         cr.solve = lw.solve;
         cr.nonZeros = lw.nonZeros;
         fitted.push_back(FieldLevel{sigmaC, std::move(centres), std::move(lw.weights)});

@@ -4,6 +4,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -11,7 +12,9 @@
 #include <vector>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/neighbors.hpp"
 #include "duplexfit/wendland.hpp"
+#include "field/wendland_detail.hpp"
 #include "shapes.hpp"
 
 namespace {
@@ -86,7 +89,41 @@ TEST_SUITE("fit") {
       CHECK(duplexfit::wendlandDerivative(r) == doctest::Approx(central).epsilon(1e-6).scale(1.0));
       CHECK(wendland(r) > 0.0);
       CHECK(wendland(r) < 1.0);
+      const double second = (duplexfit::wendlandDerivative(r + h) - duplexfit::wendlandDerivative(r - h)) / (2.0 * h);
+      CHECK(duplexfit::wendlandSecondDerivative(r) == doctest::Approx(second).epsilon(1e-6).scale(1.0));
     }
+    CHECK(duplexfit::wendlandSecondDerivative(0.0) == -20.0);
+    CHECK(duplexfit::wendlandSecondDerivative(1.0) == 0.0);
+  }
+
+  TEST_CASE("wendland: assembly over an index of a superset of the centres gives the same matrix") {
+    // The fit assembles each level over the index its merge searched: the candidates before the merge, in
+    // another order than the centres. Extra points, a permutation and a far-away extra must not matter.
+    const Points all = duplexfit::testing::fibonacciSphere(3000, 0.5);
+    std::vector<duplexfit::Index> rowOf(static_cast<std::size_t>(all.rows()), -1);
+    std::vector<Eigen::Index> picked;
+    for (Eigen::Index i = 0; i < all.rows(); ++i) {
+      if (i % 3 != 1) picked.push_back(i);
+    }
+    std::reverse(picked.begin(), picked.end());  // centre rows in another order than the indexed points
+    Points centres(static_cast<Eigen::Index>(picked.size()), 3);
+    for (std::size_t r = 0; r < picked.size(); ++r) {
+      centres.row(static_cast<Eigen::Index>(r)) = all.row(picked[r]);
+      rowOf[static_cast<std::size_t>(picked[r])] = static_cast<duplexfit::Index>(r);
+    }
+    const duplexfit::NeighborIndex superset(all);
+    for (const double lambda : {0.0, 0.3}) {
+      const duplexfit::CsrMatrix expected = duplexfit::assembleWendland(centres, 0.12, lambda);
+      const duplexfit::CsrMatrix got = duplexfit::detail::assembleWendland(centres, 0.12, lambda, superset, rowOf);
+      CHECK(expected.nonZeros() > 20 * centres.rows());
+      CHECK(got.rows == expected.rows);
+      CHECK(got.rowPtr == expected.rowPtr);
+      CHECK(got.colIdx == expected.colIdx);
+      CHECK(got.values == expected.values);
+    }
+    rowOf.pop_back();
+    CHECK_THROWS_AS(duplexfit::detail::assembleWendland(centres, 0.12, 0.0, superset, rowOf),
+                    duplexfit::InvalidArgument);
   }
 
   TEST_CASE("wendland: assembly equals a dense brute-force build on sphere level centres") {

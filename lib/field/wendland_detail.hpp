@@ -1,0 +1,21 @@
+// Assembly of the level system over a neighbour index the caller already has (private to the library):
+// the fit's merge search and its CSR pattern then share one k-d tree per level (docs/method.md §3.5, §5).
+#pragma once
+
+#include <vector>
+
+#include "duplexfit/neighbors.hpp"
+#include "duplexfit/sparse.hpp"
+#include "duplexfit/types.hpp"
+
+namespace duplexfit::detail {
+
+/// assembleWendland(centres, sigma, lambda) with the radius searches run on `superset`, an index of a
+/// point set that contains every centre: rowOf[i] is the centre row of indexed point i (whose
+/// coordinates must equal that row's), or −1 when point i is not a centre. The matrix is identical to
+/// the one assembled over an index of the centres alone.
+/// @throws InvalidArgument as assembleWendland, or when rowOf.size() ≠ superset.size().
+CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda, const NeighborIndex& superset,
+                           const std::vector<Index>& rowOf);
+
+}  // namespace duplexfit::detail
