@@ -11,6 +11,7 @@
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/neighbors.hpp"
+#include "spatial/morton.hpp"
 
 namespace duplexfit::detail {
 
@@ -260,17 +261,9 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   std::vector<std::pair<std::uint64_t, Eigen::Index>> order;
   order.reserve(static_cast<std::size_t>(kept));
   if (total > 0) {
-    const Eigen::Vector3d lo = all.colwise().minCoeff().transpose();
-    const double extent = std::max(1e-300, (all.colwise().maxCoeff().transpose() - lo).maxCoeff());
+    const MortonGrid grid(all, nullptr, MortonGrid::Box::Cube);
     for (Eigen::Index i = 0; i < total; ++i) {
-      if (keep[static_cast<std::size_t>(i)] == 0) continue;
-      std::uint64_t key = 0;
-      for (int a = 0; a < 3; ++a) {
-        const double t = (all(i, a) - lo[a]) / extent * 2097151.0;
-        const auto c = static_cast<std::uint64_t>(std::min(2097151.0, std::max(0.0, t)));
-        for (int bit = 0; bit < 21; ++bit) key |= ((c >> bit) & 1u) << (3 * bit + a);
-      }
-      order.emplace_back(key, i);
+      if (keep[static_cast<std::size_t>(i)] != 0) order.emplace_back(grid.key(all, i), i);
     }
     std::sort(order.begin(), order.end());
   }

@@ -21,6 +21,7 @@
 #include "duplexfit/preprocess.hpp"
 #include "preprocess/normals_internal.hpp"
 #include "preprocess/preprocess_device.hpp"
+#include "spatial/morton.hpp"
 
 namespace duplexfit {
 
@@ -76,31 +77,9 @@ std::uint64_t bitsOf(double v) {
 
 /// 63-bit Morton codes of the selected points on a 2^21 grid over their bounding box.
 std::vector<std::uint64_t> mortonKeys(const Points& p, const std::vector<std::size_t>& rows) {
-  Eigen::RowVector3d lo = Eigen::RowVector3d::Constant(std::numeric_limits<double>::infinity());
-  Eigen::RowVector3d hi = -lo;
-  for (const std::size_t r : rows) {
-    lo = lo.cwiseMin(p.row(static_cast<Eigen::Index>(r)));
-    hi = hi.cwiseMax(p.row(static_cast<Eigen::Index>(r)));
-  }
-  const auto spread = [](std::uint64_t v) {
-    v &= 0x1FFFFF;
-    v = (v | (v << 32)) & 0x1F00000000FFFFull;
-    v = (v | (v << 16)) & 0x1F0000FF0000FFull;
-    v = (v | (v << 8)) & 0x100F00F00F00F00Full;
-    v = (v | (v << 4)) & 0x10C30C30C30C30C3ull;
-    v = (v | (v << 2)) & 0x1249249249249249ull;
-    return v;
-  };
+  const detail::MortonGrid grid(p, &rows, detail::MortonGrid::Box::Fitted);
   std::vector<std::uint64_t> key(rows.size());
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    std::uint64_t code = 0;
-    for (int c = 0; c < 3; ++c) {
-      const double ext = hi[c] - lo[c];
-      const double f = ext > 0.0 ? (p(static_cast<Eigen::Index>(rows[i]), c) - lo[c]) / ext : 0.0;
-      code |= spread(static_cast<std::uint64_t>(std::clamp(f, 0.0, 1.0) * 2097151.0)) << c;
-    }
-    key[i] = code;
-  }
+  for (std::size_t i = 0; i < rows.size(); ++i) key[i] = grid.key(p, static_cast<Eigen::Index>(rows[i]));
   return key;
 }
 

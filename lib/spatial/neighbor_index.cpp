@@ -22,7 +22,7 @@
 #pragma GCC diagnostic pop
 
 #include "duplexfit/error.hpp"
-#include "spatial/processing_order.hpp"
+#include "spatial/morton.hpp"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -176,51 +176,6 @@ void sortHits(Hit* first, Hit* last) {
 }
 
 }  // namespace
-
-namespace detail {
-
-std::vector<std::uint32_t> processingOrder(const Points& queries, std::int64_t minQueries) {
-  const auto q = static_cast<std::int64_t>(queries.rows());
-  if (q < minQueries || q > std::numeric_limits<std::uint32_t>::max()) return {};
-  const Eigen::RowVector3d lo = queries.colwise().minCoeff();
-  const Eigen::RowVector3d extent = queries.colwise().maxCoeff() - lo;
-  double scale[3];
-  for (int c = 0; c < 3; ++c) scale[c] = extent[c] > 0.0 ? 1023.0 / extent[c] : 0.0;
-
-  // Spreads the 10 low bits of v to every third bit.
-  const auto spread = [](std::uint32_t v) {
-    v = (v | (v << 16)) & 0x030000FFu;
-    v = (v | (v << 8)) & 0x0300F00Fu;
-    v = (v | (v << 4)) & 0x030C30C3u;
-    v = (v | (v << 2)) & 0x09249249u;
-    return v;
-  };
-  std::vector<std::uint32_t> key(static_cast<std::size_t>(q));
-  const double* p = queries.data();
-#pragma omp parallel for schedule(static)
-  for (std::int64_t i = 0; i < q; ++i) {
-    std::uint32_t code = 0;
-    for (int c = 0; c < 3; ++c) {
-      const double x = (p[3 * i + c] - lo[c]) * scale[c];
-      code |= spread(static_cast<std::uint32_t>(std::min(1023.0, std::max(0.0, x)))) << c;
-    }
-    key[static_cast<std::size_t>(i)] = code;
-  }
-
-  std::vector<std::uint32_t> order(static_cast<std::size_t>(q));
-  std::vector<std::uint32_t> next(static_cast<std::size_t>(q));
-  for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<std::uint32_t>(i);
-  for (int shift = 0; shift < 30; shift += 10) {
-    std::vector<std::size_t> bucket(1025, 0);
-    for (std::uint32_t i : order) ++bucket[((key[i] >> shift) & 1023u) + 1];
-    for (std::size_t d = 1; d < bucket.size(); ++d) bucket[d] += bucket[d - 1];
-    for (std::uint32_t i : order) next[bucket[(key[i] >> shift) & 1023u]++] = i;
-    order.swap(next);
-  }
-  return order;
-}
-
-}  // namespace detail
 
 namespace {
 

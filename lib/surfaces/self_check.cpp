@@ -13,7 +13,7 @@
 #include "duplexfit/measure.hpp"
 #include "duplexfit/neighbors.hpp"
 #include "duplexfit/self_check.hpp"
-#include "spatial/processing_order.hpp"
+#include "spatial/morton.hpp"
 
 namespace duplexfit {
 
