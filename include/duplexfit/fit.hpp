@@ -156,6 +156,20 @@ struct FitProgress {
 /// Return false to cancel: fit() then throws Cancelled.
 using FitProgressCallback = std::function<bool(const FitProgress&)>;
 
+/// The supports of the fit's levels for a cloud (docs/method.md §4), in the points' own units.
+struct FitScales {
+  double diagonal = 0.0;     ///< L: the diagonal of the (slightly enlarged) bounding box
+  double sigma0 = 0.0;       ///< σ_0: 0.75 × the mean leaf diagonal of an adaptive octree (≤ 8 points a leaf)
+  double sigma1 = 0.0;       ///< σ_1 = α·L, the coarsest support
+  int levels = 0;            ///< M = max(1, ⌈log₂(2σ_1/σ_0)⌉), or the requested count
+  double sigmaFinest = 0.0;  ///< σ_M = σ_1 / 2^(M−1)
+};
+
+/// The scales fit() uses for these positions with FitOptions::alpha = `alpha` and FitOptions::levels =
+/// `levels` (0: automatic); the bilateral filter takes its area σ from here.
+/// @throws InvalidArgument when there are no positions or one is not finite.
+FitScales fitScales(const Points& positions, double alpha = 0.75, int levels = 0);
+
 /// Fits the field. Points are used as given (merge duplicates first, e.g. PointSet::mergeDuplicates).
 /// @throws InvalidArgument (too few/degenerate points, bad options naming the field), DeviceError, Cancelled.
 FitResult fit(const Device& device, const PointSet& points, const FitOptions& options = {},

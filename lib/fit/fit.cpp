@@ -61,6 +61,20 @@ struct LevelWork : LevelReport {
 
 }  // namespace
 
+FitScales fitScales(const Points& positions, double alpha, int levels) {
+  if (positions.rows() == 0) throw InvalidArgument("fitScales: no points");
+  if (!positions.allFinite()) throw InvalidArgument("fitScales: a coordinate is not finite");
+  if (!(alpha > 0.0) || !std::isfinite(alpha)) throw InvalidArgument("fitScales: alpha must be positive and finite");
+  FitScales s;
+  const detail::HierarchyBox box = detail::hierarchyBox(positions);
+  s.diagonal = box.diagonal;
+  s.sigma1 = alpha * box.diagonal;
+  s.sigma0 = detail::adaptiveSigma0(positions, box);
+  s.levels = levels > 0 ? levels : detail::levelCount(s.sigma1, s.sigma0);
+  s.sigmaFinest = s.sigma1 / std::pow(2.0, s.levels - 1);
+  return s;
+}
+
 FitResult fit(const Device& device, const PointSet& points, const FitOptions& options,
               const FitProgressCallback& progress) {
   const auto start = Clock::now();

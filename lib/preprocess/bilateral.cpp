@@ -10,9 +10,9 @@
 #include <vector>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/fit.hpp"
 #include "duplexfit/neighbors.hpp"
 #include "duplexfit/preprocess.hpp"
-#include "fit/hierarchy.hpp"
 #include "preprocess/normals_internal.hpp"
 #include "preprocess/preprocess_device.hpp"
 
@@ -102,11 +102,9 @@ PointSet bilateralFilter(const PointSet& points, const BilateralOptions& options
   // σ of the area weights: σ_M, the finest support of the fit's hierarchy (§4, §12.14).
   double sigma = options.areaSigma;
   if (sigma == 0.0) {
-    const detail::HierarchyBox hb = detail::hierarchyBox(in);
-    const double sigma1 = kAlpha * hb.diagonal;
-    const double sigma0 = detail::adaptiveSigma0(in, hb);
-    rep.levels = detail::levelCount(sigma1, sigma0);
-    sigma = sigma1 / std::pow(2.0, rep.levels - 1);
+    const FitScales scales = fitScales(in, kAlpha);
+    rep.levels = scales.levels;
+    sigma = scales.sigmaFinest;
   }
   rep.areaSigma = sigma;
 

@@ -42,6 +42,12 @@ TEST_SUITE("fit") {
       const FitResult r = fit(d, cloud, options);
       CHECK(r.report.levels >= 4);
       CHECK(r.report.levels <= 7);
+      // fitScales (public: the bilateral filter's σ) states the fit's own supports, in input units.
+      const FitScales scales = fitScales(cloud.positions(), options.alpha);
+      CHECK(scales.levels == r.report.levels);
+      CHECK(scales.sigma1 == doctest::Approx(r.report.sigma1).epsilon(1e-9));
+      CHECK(scales.sigma0 == doctest::Approx(r.report.sigma0).epsilon(1e-9));
+      CHECK(scales.sigmaFinest == doctest::Approx(r.report.sigma1 / std::pow(2.0, r.report.levels - 1)).epsilon(1e-9));
       CHECK(r.report.offSurfaceSide == "outside");
       for (const LevelReport& l : r.report.levelReports) {
         CHECK(l.solve.converged);

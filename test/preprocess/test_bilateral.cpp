@@ -8,8 +8,8 @@
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/io.hpp"
+#include "duplexfit/fit.hpp"
 #include "duplexfit/preprocess.hpp"
-#include "fit/hierarchy.hpp"
 #include "io/io_test_util.hpp"
 #include "preprocess/preprocess_test_util.hpp"
 #include "test_device.hpp"
@@ -73,8 +73,9 @@ TEST_CASE("bilateral: noisy sphere, RMS radial error down, small radial bias") {
   CHECK(rep.sigmaSpatial == doctest::Approx(4 * rep.rAve));
   CHECK(rep.sigmaRange == rep.sigmaSpatial);
   CHECK(rep.radius == doctest::Approx(2 * rep.sigmaSpatial));
-  const detail::HierarchyBox box = detail::hierarchyBox(noisy.positions());
-  CHECK(rep.areaSigma == doctest::Approx(0.75 * box.diagonal / std::pow(2.0, rep.levels - 1)));
+  const FitScales scales = fitScales(noisy.positions());
+  CHECK(rep.levels == scales.levels);
+  CHECK(rep.areaSigma == doctest::Approx(0.75 * scales.diagonal / std::pow(2.0, rep.levels - 1)));
   CHECK(rep.levels >= 5);
   CHECK(rep.points == noisy.size());
   CHECK(rep.moved == noisy.size());
