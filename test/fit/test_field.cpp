@@ -2,6 +2,7 @@
 // derivatives against finite differences, and the binary file format (round trip and corruption).
 #include <doctest/doctest.h>
 
+#include <functional>
 #include <random>
 #include <sstream>
 
@@ -12,6 +13,21 @@
 using namespace duplexfit;
 
 namespace {
+
+/// Runs `body` on the reference device and the OpenCL test device (when there is one), in float and,
+/// where supported, double.
+void forEachDeviceAndPrecision(const std::function<void(const Device&, Precision)>& body) {
+  std::vector<Device> devices{Device::reference()};
+  if (const Device* d = testing::openclTestDevice()) devices.push_back(*d);
+  for (const Device& d : devices) {
+    for (const Precision p : {Precision::Float, Precision::Double}) {
+      if (p == Precision::Double && !d.supportsDouble()) continue;
+      CAPTURE(d.info().spec);
+      CAPTURE(precisionName(p));
+      body(d, p);
+    }
+  }
+}
 
 // A random three-level field in a box around the origin, with a non-trivial normalisation.
 ImplicitField randomField(unsigned seed) {
@@ -73,34 +89,27 @@ TEST_SUITE("fit") {
   TEST_CASE("field: batched evaluation on the reference and OpenCL devices matches the brute-force sum") {
     const ImplicitField f = randomField(3);
     const Points q = randomQueries(f, 3001, 4);
-    std::vector<Device> devices{Device::reference()};
-    if (const Device* d = testing::openclTestDevice()) devices.push_back(*d);
-    for (const Device& d : devices) {
-      for (const Precision p : {Precision::Float, Precision::Double}) {
-        if (p == Precision::Double && !d.supportsDouble()) continue;
-        CAPTURE(d.info().spec);
-        CAPTURE(precisionName(p));
-        const double tol = p == Precision::Double ? 1e-10 : 2e-4;
-        const FieldSamples s = f.evaluate(d, q, FieldDerivatives::Hessian, p);
-        const FieldSamples v = f.evaluate(d, q, FieldDerivatives::None, p);
-        REQUIRE(s.values.size() == q.rows());
-        int bad = 0;
-        for (Eigen::Index i = 0; i < q.rows(); ++i) {
-          const Eigen::Vector3d x = q.row(i).transpose();
-          const double fv = f.value(x);
-          const Eigen::Vector3d g = f.gradient(x);
-          const Eigen::Matrix3d H = f.hessian(x);
-          const double scale = 1.0 + std::abs(fv);
-          if (std::abs(s.values[i] - fv) > tol * scale || std::abs(v.values[i] - fv) > tol * scale) ++bad;
-          if ((s.gradients.row(i).transpose() - g).norm() > tol * (1.0 + g.norm()) * 10) ++bad;
-          const double hs[6] = {H(0, 0), H(0, 1), H(0, 2), H(1, 1), H(1, 2), H(2, 2)};
-          for (int c = 0; c < 6; ++c) {
-            if (std::abs(s.hessians(i, c) - hs[c]) > tol * (1.0 + H.norm()) * 100) ++bad;
-          }
+    forEachDeviceAndPrecision([&](const Device& d, Precision p) {
+      const double tol = p == Precision::Double ? 1e-10 : 2e-4;
+      const FieldSamples s = f.evaluate(d, q, FieldDerivatives::Hessian, p);
+      const FieldSamples v = f.evaluate(d, q, FieldDerivatives::None, p);
+      REQUIRE(s.values.size() == q.rows());
+      int bad = 0;
+      for (Eigen::Index i = 0; i < q.rows(); ++i) {
+        const Eigen::Vector3d x = q.row(i).transpose();
+        const double fv = f.value(x);
+        const Eigen::Vector3d g = f.gradient(x);
+        const Eigen::Matrix3d H = f.hessian(x);
+        const double scale = 1.0 + std::abs(fv);
+        if (std::abs(s.values[i] - fv) > tol * scale || std::abs(v.values[i] - fv) > tol * scale) ++bad;
+        if ((s.gradients.row(i).transpose() - g).norm() > tol * (1.0 + g.norm()) * 10) ++bad;
+        const double hs[6] = {H(0, 0), H(0, 1), H(0, 2), H(1, 1), H(1, 2), H(2, 2)};
+        for (int c = 0; c < 6; ++c) {
+          if (std::abs(s.hessians(i, c) - hs[c]) > tol * (1.0 + H.norm()) * 100) ++bad;
         }
-        CHECK(bad == 0);
       }
-    }
+      CHECK(bad == 0);
+    });
   }
 
   TEST_CASE("field: a partial evaluator sums only the first levels") {
@@ -125,28 +134,21 @@ TEST_SUITE("fit") {
     levels.push_back(small);
     const ImplicitField f(base.normalization(), base.f0(), levels, base.offsets(), base.bounds());
     const Points q = randomQueries(f, 777, 12);
-    std::vector<Device> devices{Device::reference()};
-    if (const Device* d = testing::openclTestDevice()) devices.push_back(*d);
-    for (const Device& d : devices) {
-      for (const Precision p : {Precision::Float, Precision::Double}) {
-        if (p == Precision::Double && !d.supportsDouble()) continue;
-        CAPTURE(d.info().spec);
-        CAPTURE(precisionName(p));
-        FieldEvaluator grown(d, f.normalization(), f.f0(), p);
-        CHECK(grown.levelCount() == 0);
-        CHECK(grown.evaluate(q).values.cwiseEqual(f.f0() / f.normalization().scale).all());
-        for (int k = 1; k <= 4; ++k) {
-          grown.appendLevel(f.levels()[static_cast<std::size_t>(k - 1)]);
-          CHECK(grown.levelCount() == k);
-          const FieldEvaluator fresh(d, f, p, k);
-          const FieldSamples a = grown.evaluate(q, FieldDerivatives::Hessian);
-          const FieldSamples b = fresh.evaluate(q, FieldDerivatives::Hessian);
-          CHECK(a.values == b.values);
-          CHECK(a.gradients == b.gradients);
-          CHECK(a.hessians == b.hessians);
-        }
+    forEachDeviceAndPrecision([&](const Device& d, Precision p) {
+      FieldEvaluator grown(d, f.normalization(), f.f0(), p);
+      CHECK(grown.levelCount() == 0);
+      CHECK(grown.evaluate(q).values.cwiseEqual(f.f0() / f.normalization().scale).all());
+      for (int k = 1; k <= 4; ++k) {
+        grown.appendLevel(f.levels()[static_cast<std::size_t>(k - 1)]);
+        CHECK(grown.levelCount() == k);
+        const FieldEvaluator fresh(d, f, p, k);
+        const FieldSamples a = grown.evaluate(q, FieldDerivatives::Hessian);
+        const FieldSamples b = fresh.evaluate(q, FieldDerivatives::Hessian);
+        CHECK(a.values == b.values);
+        CHECK(a.gradients == b.gradients);
+        CHECK(a.hessians == b.hessians);
       }
-    }
+    });
   }
 
   TEST_CASE("field: save and load round trip evaluates identically; corrupt files are rejected") {
