@@ -19,7 +19,6 @@
 
 #include <unistd.h>
 
-#include "device/device_impl.hpp"
 #include "duplexfit/error.hpp"
 
 #ifndef DUPLEXFIT_GIT_DESCRIBE
@@ -298,33 +297,6 @@ std::string ForeignLoad::describe() const {
          pct(share()) + " of the machine)";
 }
 
-struct Stopwatch::Markers {
-  cl::Event begin, end;
-};
-
-void Stopwatch::start() {
-  device_.finish();
-  if (!device_.isReference()) {
-    if (!markers_) markers_ = std::make_shared<Markers>();
-    device_.impl()->queue().enqueueMarkerWithWaitList(nullptr, &markers_->begin);
-  }
-  t0_ = nowSeconds();
-}
-
-void Stopwatch::stop() {
-  if (!device_.isReference()) device_.impl()->queue().enqueueMarkerWithWaitList(nullptr, &markers_->end);
-  device_.finish();
-  wallMs_ = (nowSeconds() - t0_) * 1e3;
-  deviceMs_ = kNaN;
-  if (!device_.isReference()) {
-    cl_ulong b = 0, e = 0;
-    if (markers_->begin.getProfilingInfo(CL_PROFILING_COMMAND_END, &b) == CL_SUCCESS &&
-        markers_->end.getProfilingInfo(CL_PROFILING_COMMAND_END, &e) == CL_SUCCESS && e >= b) {
-      deviceMs_ = static_cast<double>(e - b) * 1e-6;
-    }
-  }
-}
-
 TriadResult hostTriad(std::size_t n, int trials) {
   // Raw arrays, first touched in parallel with the same static schedule as the triad.
   std::unique_ptr<double[]> a(new double[n]), b(new double[n]), c(new double[n]);
@@ -409,7 +381,7 @@ DeviceLabel DeviceLabel::of(const Device& device) {
     l.name = info.name;
     l.platform = info.platform;
     l.driver = info.driverVersion;
-    l.params = device.impl()->params().describe();
+    l.params = device.tuning().describe();
   }
   const auto gib = [](std::uint64_t bytes) { return fmt(static_cast<double>(bytes) / double(1ull << 30), 1); };
   l.memory = gib(info.globalMemBytes) + " GiB, buffers <= " + gib(device.maxAllocBytes()) + " GiB";

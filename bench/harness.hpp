@@ -50,26 +50,8 @@ struct Stats {
   static Stats of(std::vector<double> samples);
 };
 
-/// Times queued work on a device: wall time from before the enqueue (after finish()) to after finish(),
-/// and the device span between two profiling markers enqueued around the work (OpenCL only; the
-/// queue is created with CL_QUEUE_PROFILING_ENABLE). For one kernel the span is its run time.
-class Stopwatch {
- public:
-  explicit Stopwatch(const Device& device) : device_(device) {}
-  void start();
-  void stop();
-  double wallMs() const { return wallMs_; }
-  /// NaN on the reference device.
-  double deviceMs() const { return deviceMs_; }
-
- private:
-  Device device_;
-  double t0_ = 0.0;
-  double wallMs_ = 0.0;
-  double deviceMs_ = 0.0;
-  struct Markers;
-  std::shared_ptr<Markers> markers_;
-};
+/// Times queued work on a device (wall and profiled device time): the library's DeviceStopwatch.
+using Stopwatch = DeviceStopwatch;
 
 /// Wall and device trials of one operation.
 struct Timing {

@@ -69,6 +69,18 @@ struct DeviceOptions {
   std::uint64_t maxAllocBytes = 0; ///< 0: the device's own limit; else a lower cap on any one buffer
 };
 
+/// The launch configuration chosen for an OpenCL device from its type and limits (benchmark headers,
+/// tests of the GPU-style path); all zero for the reference device.
+struct DeviceTuning {
+  std::size_t workGroup = 0;     ///< local size of every launch (element-wise and group reductions)
+  std::size_t chunk = 0;         ///< elements per work-item in the barrier-free chunk kernels
+  std::size_t lanes = 0;         ///< work-items per row in the row-per-group SpMV
+  std::size_t groups = 0;        ///< work-groups of the group reductions
+  bool chunkReductions = false;  ///< CPU style: chunk reductions and the fused row-per-item SpMV
+  /// "wg=… chunk=… lanes=… groups=… reductions=chunk|group", or "reference" for the reference device.
+  std::string describe() const;
+};
+
 /// A compute device. Cheap to copy: copies share one OpenCL context, in-order queue and program cache.
 class Device {
  public:
@@ -102,6 +114,9 @@ class Device {
   /// @throws DeviceError "<what> needs N MiB but device X allows at most M MiB in one buffer".
   void checkAllocation(std::uint64_t bytes, const std::string& what) const;
 
+  /// The launch configuration in use (all zero on the reference device).
+  DeviceTuning tuning() const;
+
   /// Internal: the OpenCL implementation (null for the reference device).
   detail::DeviceImpl* impl() const noexcept { return impl_.get(); }
 
@@ -111,6 +126,30 @@ class Device {
   std::shared_ptr<const DeviceInfo> info_;
   bool fp64Allowed_ = true;
   std::uint64_t maxAllocBytes_ = 0;
+};
+
+/// Times queued work on a device: wall time from start() (after finish()) to stop() (after finish()), and
+/// on OpenCL the device span between two profiling markers enqueued at start() and stop(); for a single
+/// kernel that span is its run time.
+class DeviceStopwatch {
+ public:
+  explicit DeviceStopwatch(const Device& device);
+  DeviceStopwatch(DeviceStopwatch&&) noexcept;
+  DeviceStopwatch& operator=(DeviceStopwatch&&) noexcept;
+  ~DeviceStopwatch();
+  void start();
+  void stop();
+  double wallMs() const noexcept { return wallMs_; }
+  /// NaN on the reference device, or when the device reports no profiling times.
+  double deviceMs() const noexcept { return deviceMs_; }
+
+ private:
+  struct Markers;
+  Device device_;
+  std::unique_ptr<Markers> markers_;
+  double t0_ = 0.0;
+  double wallMs_ = 0.0;
+  double deviceMs_ = 0.0;
 };
 
 }  // namespace duplexfit

@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <chrono>
+#include <limits>
 #include <cstdlib>
 #include <mutex>
 #include <sstream>
@@ -372,6 +374,56 @@ void Device::checkAllocation(std::uint64_t bytes, const std::string& what) const
       << info_->spec << ") allows at most " << (maxAllocBytes_ >> 20)
       << " MiB per buffer; use a smaller system, float precision or another device";
   throw DeviceError(msg.str());
+}
+
+DeviceTuning Device::tuning() const { return impl_ == nullptr ? DeviceTuning{} : impl_->params().tuning(); }
+
+std::string DeviceTuning::describe() const {
+  if (workGroup == 0) return "reference";
+  std::ostringstream s;
+  s << "wg=" << workGroup << " chunk=" << chunk << " lanes=" << lanes << " groups=" << groups
+    << " reductions=" << (chunkReductions ? "chunk" : "group");
+  return s.str();
+}
+
+struct DeviceStopwatch::Markers {
+  cl::Event begin, end;
+};
+
+namespace {
+double nowSeconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+}  // namespace
+
+DeviceStopwatch::DeviceStopwatch(const Device& device) : device_(device) {}
+DeviceStopwatch::DeviceStopwatch(DeviceStopwatch&&) noexcept = default;
+DeviceStopwatch& DeviceStopwatch::operator=(DeviceStopwatch&&) noexcept = default;
+DeviceStopwatch::~DeviceStopwatch() = default;
+
+void DeviceStopwatch::start() {
+  device_.finish();
+  if (!device_.isReference()) {
+    if (!markers_) markers_ = std::make_unique<Markers>();
+    DUPLEXFIT_CL_CHECK(device_.impl()->queue().enqueueMarkerWithWaitList(nullptr, &markers_->begin));
+  }
+  t0_ = nowSeconds();
+}
+
+void DeviceStopwatch::stop() {
+  if (!device_.isReference() && markers_) {
+    DUPLEXFIT_CL_CHECK(device_.impl()->queue().enqueueMarkerWithWaitList(nullptr, &markers_->end));
+  }
+  device_.finish();
+  wallMs_ = (nowSeconds() - t0_) * 1e3;
+  deviceMs_ = std::numeric_limits<double>::quiet_NaN();
+  if (!device_.isReference() && markers_) {
+    cl_ulong b = 0, e = 0;
+    if (markers_->begin.getProfilingInfo(CL_PROFILING_COMMAND_END, &b) == CL_SUCCESS &&
+        markers_->end.getProfilingInfo(CL_PROFILING_COMMAND_END, &e) == CL_SUCCESS && e >= b) {
+      deviceMs_ = static_cast<double>(e - b) * 1e-6;
+    }
+  }
 }
 
 }  // namespace duplexfit

@@ -65,12 +65,17 @@ LaunchParams chooseParams(const DeviceInfo& info) {
 
 }  // namespace
 
-std::string LaunchParams::describe() const {
-  std::ostringstream s;
-  s << "wg=" << workGroup << " chunk=" << chunk << " lanes=" << lanes << " groups=" << groups
-    << " reductions=" << (chunkReductions ? "chunk" : "group");
-  return s.str();
+DeviceTuning LaunchParams::tuning() const {
+  DeviceTuning t;
+  t.workGroup = workGroup;
+  t.chunk = chunk;
+  t.lanes = lanes;
+  t.groups = groups;
+  t.chunkReductions = chunkReductions;
+  return t;
 }
+
+std::string LaunchParams::describe() const { return tuning().describe(); }
 
 const std::vector<std::pair<std::string, std::vector<std::string>>>& programTable() {
   static const std::vector<std::pair<std::string, std::vector<std::string>>> table = {

@@ -5,7 +5,6 @@
 #include <cstdlib>
 #include <random>
 
-#include "device/device_impl.hpp"
 #include "duplexfit/linalg.hpp"
 #include "duplexfit/wendland.hpp"
 #include "shapes.hpp"
@@ -32,7 +31,7 @@ TEST_SUITE("linalg") {
     for (const char* wg : {"64", "256"}) {
       CAPTURE(wg);
       const Device g = openWith(dev, "group", wg);
-      REQUIRE_FALSE(g.impl()->params().chunkReductions);
+      REQUIRE_FALSE(g.tuning().chunkReductions);
       const Device ref = Device::reference();
       const double sigma = testing::sigmaForNonZeros(testing::Shape::Torus, 4001, 0.05, 40.0);
       const CsrMatrix a = assembleWendland(testing::levelCentres(testing::Shape::Torus, 4001, 0.05, sigma).centres, sigma);
