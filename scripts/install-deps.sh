@@ -11,6 +11,7 @@ packages=(
   libeigen3-dev                        # Eigen: host linear algebra and the reference solver
   libflann-dev liblz4-dev              # FLANN k-d tree (neighbour queries); lz4 is linked by its headers
   doctest-dev                          # unit tests
+  nlohmann-json3-dev                   # the tests parse report.json and --json output (header-only)
   libpng-dev                           # PNG output (section pictures, slice masks)
   clinfo                               # device diagnostics
 )

@@ -6,6 +6,7 @@
 #include <doctest/doctest.h>
 
 #include "duplexfit/device.hpp"
+#include "skip.hpp"
 
 namespace duplexfit::testing {
 
@@ -17,15 +18,14 @@ bool deviceRequired();
 
 }  // namespace duplexfit::testing
 
-/// At the top of a test case that needs the OpenCL device: binds `dev` (const Device&), or fails (CI)
-/// or returns early with a message (local machine without OpenCL).
+/// At the top of a test case that needs the OpenCL device: binds `dev` (const Device&), or fails (CI,
+/// DUPLEXFIT_REQUIRE_DEVICE=1) or skips the case (DUPLEXFIT_SKIP: local machine without OpenCL).
 #define DUPLEXFIT_OPENCL_DEVICE(dev)                                                      \
   const ::duplexfit::Device* dev##_ptr_ = ::duplexfit::testing::openclTestDevice();       \
   if (dev##_ptr_ == nullptr) {                                                            \
     if (::duplexfit::testing::deviceRequired()) {                                         \
       FAIL("no OpenCL device available but DUPLEXFIT_REQUIRE_DEVICE=1");                  \
     }                                                                                     \
-    MESSAGE("skipped: no OpenCL device");                                                 \
-    return;                                                                               \
+    DUPLEXFIT_SKIP("no OpenCL device");                                                   \
   }                                                                                       \
   const ::duplexfit::Device& dev = *dev##_ptr_

@@ -2,65 +2,34 @@
 // clear error naming the file and element, a non-zero exit status and no partial output.
 #include <doctest/doctest.h>
 
-#include <cctype>
-
-#include <cstdio>
-#include <cstdlib>
+#include <algorithm>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <string>
+#include <vector>
 
-#include <sys/wait.h>
-#include <unistd.h>
-
+#include "cli_runner.hpp"
 #include "duplexfit/field.hpp"
 #include "duplexfit/io.hpp"
+#include "json_report.hpp"
 #include "shapes.hpp"
-
-#ifdef DUPLEXFIT_CLI_PATH  // the CLI is built (DUPLEXFIT_BUILD_CLI)
+#include "temp_dir.hpp"
 
 namespace fs = std::filesystem;
 using namespace duplexfit;
 
 namespace {
 
-struct Run {
-  int status = -1;
-  std::string err;
-};
+using testing::CliRun;
+using testing::Json;
+using testing::jsonAt;
 
-fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("duplexfit-cli-test-" + std::to_string(::getpid())) / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path scratch(const std::string& name) { return testing::scratchDir("duplexfit-cli-test", name); }
 
-Run cli(const std::string& args) {
-  const fs::path errFile = fs::temp_directory_path() / ("duplexfit-cli-stderr-" + std::to_string(::getpid()));
-  const std::string cmd = std::string(DUPLEXFIT_CLI_PATH) + " " + args + " > /dev/null 2> " + errFile.string();
-  const int raw = std::system(cmd.c_str());
-  Run r;
-  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  std::ifstream in(errFile);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  r.err = ss.str();
-  fs::remove(errFile);
-  return r;
-}
+CliRun cli(const std::string& args) { return testing::runCli(args); }
 
-std::string readBytes(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+std::string readBytes(const fs::path& p) { return testing::readFile(p); }
 
-void writeText(const fs::path& p, const std::string& text) {
-  std::ofstream(p, std::ios::binary) << text;
-}
+void writeText(const fs::path& p, const std::string& text) { REQUIRE(testing::writeFile(p, text)); }
 
 // A small valid cloud (a sphere) as binary PLY.
 fs::path sphereCloud(const fs::path& dir, int n = 800) {
@@ -80,7 +49,7 @@ std::size_t filesIn(const fs::path& dir) {
 // Expects a failing fit: non-zero status, the message mentions every part, the output folder stays empty.
 void expectFitError(const std::string& input, const std::string& options, std::initializer_list<const char*> parts) {
   const fs::path out = scratch("out-err");
-  const Run r = cli("fit " + input + " " + options + " -o " + out.string() + " --quiet");
+  const CliRun r = cli("fit " + input + " " + options + " -o " + out.string() + " --quiet");
   INFO("stderr: " << r.err);
   CHECK(r.status != 0);
   for (const char* part : parts) CHECK(r.err.find(part) != std::string::npos);
@@ -91,10 +60,11 @@ void expectFitError(const std::string& input, const std::string& options, std::i
 
 TEST_SUITE("cli") {
   TEST_CASE("cli: fit writes both meshes, the field and the report; mesh re-extracts a level set") {
+    DUPLEXFIT_REQUIRE_CLI();
     const fs::path dir = scratch("fit");
     const fs::path input = sphereCloud(dir);
     const fs::path out = dir / "out";
-    const Run r = cli("fit " + input.string() + " --offset 0.1 -o " + out.string() + " --quiet --strict");
+    const CliRun r = cli("fit " + input.string() + " --offset 0.1 -o " + out.string() + " --quiet --strict");
     INFO("stderr: " << r.err);
     REQUIRE(r.status == 0);
     for (const char* f : {"zero.ply", "offset1.ply", "field.dpxf", "report.json"}) CHECK(fs::exists(out / f));
@@ -104,70 +74,69 @@ TEST_SUITE("cli") {
     CHECK(zero.components == 1);
     CHECK(off.components == 1);
     CHECK(off.watertight());
-    std::ifstream report(out / "report.json");
-    std::stringstream ss;
-    ss << report.rdbuf();
-    CHECK(ss.str().find("\"level_reports\"") != std::string::npos);
-    CHECK(ss.str().find("\"E0\"") != std::string::npos);
+    const Json report = testing::readJsonFile(out / "report.json");
+    const Json levels = jsonAt(report, "/level_reports");
+    CHECK(levels.is_array());
+    CHECK_FALSE(levels.empty());
+    CHECK(jsonAt(report, "/E0").is_number());
     // The self-check ran (input points tested against the zero level) and found nothing.
-    CHECK(ss.str().find("\"self_check\": {") != std::string::npos);
-    CHECK(ss.str().find("\"ok\": true") != std::string::npos);
-    CHECK(ss.str().find("\"points_checked\": true") != std::string::npos);
-    CHECK(ss.str().find("\"why\"") == std::string::npos);
+    CHECK(jsonAt(report, "/self_check").is_object());
+    CHECK(jsonAt(report, "/self_check/ok") == true);
+    CHECK(jsonAt(report, "/self_check/points_checked") == true);
+    CHECK(jsonAt(report, "/self_check/issues") == Json::array());
+    CHECK(testing::jsonValuesOf(report, "why").empty());  // no component issue anywhere
 
-    const Run m = cli("mesh " + (out / "field.dpxf").string() + " --iso 0.05 -o " + (dir / "half.obj").string() + " --quiet");
+    const CliRun m = cli("mesh " + (out / "field.dpxf").string() + " --iso 0.05 -o " + (dir / "half.obj").string() + " --quiet");
     CHECK(m.status == 0);
     CHECK(analyzeTopology(readMesh((dir / "half.obj").string())).components == 1);
-    const Run mc = cli("mesh " + (out / "field.dpxf").string() + " --min-component 0.01 -o " + (dir / "min.obj").string() +
-                       " --quiet");
+    const CliRun mc = cli("mesh " + (out / "field.dpxf").string() + " --min-component 0.01 -o " + (dir / "min.obj").string() +
+                          " --quiet");
     CHECK(mc.status == 0);
     CHECK(analyzeTopology(readMesh((dir / "min.obj").string())).components == 1);
 
     // The robust-field mechanisms are counted per level and can be switched off.
-    CHECK(ss.str().find("\"anchors\": {") != std::string::npos);
-    CHECK(ss.str().find("\"offset_medial\": [") != std::string::npos);
-    const Run plain = cli("fit " + input.string() + " --offset 0.1 --no-anchors --no-medial -o " + (dir / "plain").string() +
-                          " --quiet --resolution 32");
+    for (const Json& level : levels) {
+      CHECK(jsonAt(level, "/anchors").is_object());
+      CHECK(jsonAt(level, "/offset_medial").is_array());
+    }
+    const CliRun plain = cli("fit " + input.string() + " --offset 0.1 --no-anchors --no-medial -o " + (dir / "plain").string() +
+                             " --quiet --resolution 32");
     REQUIRE(plain.status == 0);
-    std::ifstream plainReport(dir / "plain" / "report.json");
-    std::stringstream ps;
-    ps << plainReport.rdbuf();
-    // Every per-level count of anchors and medial points is 0 ("key": 0 followed by a non-digit).
-    auto allZero = [](const std::string& text, const std::string& key) {
-      std::size_t at = 0, seen = 0;
-      while ((at = text.find("\"" + key + "\": ", at)) != std::string::npos) {
-        at += key.size() + 4;
-        ++seen;
-        if (text[at] != '0' || std::isdigit(static_cast<unsigned char>(text[at + 1])) != 0) return false;
-      }
-      return seen > 0;
+    const Json plainReport = testing::readJsonFile(dir / "plain" / "report.json");
+    // Every per-level count of anchors and medial points is 0 (every value of the key, wherever it is).
+    auto allZero = [](const Json& doc, const std::string& key) {
+      const std::vector<Json> values = testing::jsonValuesOf(doc, key);
+      return !values.empty() && std::all_of(values.begin(), values.end(), [](const Json& v) {
+        return v.is_number_integer() && v.get<long long>() == 0;
+      });
     };
-    CHECK(allZero(ps.str(), "inside"));
-    CHECK(allZero(ps.str(), "outside"));
-    CHECK(allZero(ps.str(), "off_surface_medial"));
-    CHECK_FALSE(allZero(ss.str(), "outside"));  // the default fit placed anchors
+    CHECK(allZero(plainReport, "inside"));
+    CHECK(allZero(plainReport, "outside"));
+    CHECK(allZero(plainReport, "off_surface_medial"));
+    CHECK_FALSE(allZero(report, "outside"));  // the default fit placed anchors
 
-    const Run rel = cli("fit " + input.string() + " --offset 0.1,-0.05 --offset-rel -o " + (dir / "rel").string() + " --quiet --format stl");
+    const CliRun rel = cli("fit " + input.string() + " --offset 0.1,-0.05 --offset-rel -o " + (dir / "rel").string() + " --quiet --format stl");
     CHECK(rel.status == 0);
     CHECK(fs::exists(dir / "rel" / "offset2.stl"));
   }
 
   TEST_CASE("cli: fit --separate writes one field per surface and a report in separate mode") {
+    DUPLEXFIT_REQUIRE_CLI();
     const fs::path dir = scratch("separate");
     const fs::path input = sphereCloud(dir);
     const fs::path out = dir / "out";
-    const Run r = cli("fit " + input.string() + " --offset 0.1 --separate -o " + out.string() + " --quiet --strict");
+    const CliRun r = cli("fit " + input.string() + " --offset 0.1 --separate -o " + out.string() + " --quiet --strict");
     INFO("stderr: " << r.err);
     REQUIRE(r.status == 0);
     for (const char* f : {"zero.ply", "offset1.ply", "field.dpxf", "field_offset1.dpxf", "report.json"}) {
       CHECK(fs::exists(out / f));
     }
     CHECK(filesIn(out) == 5);
-    const std::string report = readBytes(out / "report.json");
-    CHECK(report.find("\"mode\": \"separate\"") != std::string::npos);
-    CHECK(report.find("\"fits\"") != std::string::npos);
-    CHECK(report.find("\"self_check\": {") != std::string::npos);
-    CHECK(report.find("\"ok\": true") != std::string::npos);
+    const Json report = testing::readJsonFile(out / "report.json");
+    CHECK(jsonAt(report, "/mode") == "separate");
+    CHECK(jsonAt(report, "/fits").is_array());
+    CHECK(jsonAt(report, "/self_check").is_object());
+    CHECK(jsonAt(report, "/self_check/ok") == true);
     // The two fields are independent: each has its own 0-level (surface radius 0.5, offset radius 0.4).
     const ImplicitField zero = ImplicitField::load((out / "field.dpxf").string());
     const ImplicitField off = ImplicitField::load((out / "field_offset1.dpxf").string());
@@ -180,6 +149,7 @@ TEST_SUITE("cli") {
   }
 
   TEST_CASE("cli: bad clouds give a clear error naming the file and element, and no output") {
+    DUPLEXFIT_REQUIRE_CLI();
     const fs::path dir = scratch("bad");
     const std::string header = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
                                "property float z\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n";
@@ -219,6 +189,7 @@ TEST_SUITE("cli") {
   }
 
   TEST_CASE("cli: bad options, an unwritable output and bad field files are clear errors") {
+    DUPLEXFIT_REQUIRE_CLI();
     const fs::path dir = scratch("opts");
     const std::string input = sphereCloud(dir).string();
     expectFitError(input, "--offset 0", {"offset"});
@@ -229,7 +200,7 @@ TEST_SUITE("cli") {
     expectFitError(input, "--offset 0.1 --device no-such-device", {"no-such-device", "available devices"});
     // An output path below a regular file cannot be created.
     writeText(dir / "file", "x");
-    const Run r = cli("fit " + input + " --offset 0.1 -o " + (dir / "file" / "sub").string() + " --quiet");
+    const CliRun r = cli("fit " + input + " --offset 0.1 -o " + (dir / "file" / "sub").string() + " --quiet");
     CHECK(r.status == 2);
     CHECK(r.err.find("output folder") != std::string::npos);
     // Field files: corrupt, truncated, unknown version.
@@ -245,7 +216,7 @@ TEST_SUITE("cli") {
     writeText(dir / "v2.dpxf", v2);
     for (const char* name : {"corrupt.dpxf", "cut.dpxf", "v2.dpxf"}) {
       const fs::path mesh = dir / (std::string(name) + ".ply");
-      const Run m = cli(std::string("mesh ") + (dir / name).string() + " -o " + mesh.string() + " --quiet");
+      const CliRun m = cli(std::string("mesh ") + (dir / name).string() + " -o " + mesh.string() + " --quiet");
       INFO(name << ": " << m.err);
       CHECK(m.status == 2);
       CHECK(m.err.find(name) != std::string::npos);
@@ -254,4 +225,3 @@ TEST_SUITE("cli") {
   }
 }
 
-#endif  // DUPLEXFIT_CLI_PATH

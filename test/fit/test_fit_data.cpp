@@ -6,10 +6,10 @@
 #include <algorithm>
 #include <cmath>
 
+#include "data.hpp"
 #include "duplexfit/fit.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/surfaces.hpp"
-#include "io/io_test_util.hpp"
 #include "shapes.hpp"
 #include "test_device.hpp"
 
@@ -45,8 +45,7 @@ Points torusPoints(double rho, int n) { return testing::torusGrid(0.35, rho, n);
 
 TEST_SUITE("fit") {
   TEST_CASE("fit data: sphere_10k and torus_10k with δ = ±0.05 match the exact offset surfaces") {
-    const std::string dir = testing::sharedDataDir();
-    if (dir.empty()) return;
+    DUPLEXFIT_SHARED_DATA_DIR(dir);
     for (const double delta : {0.05, -0.05}) {
       CAPTURE(delta);
       const FitResult s = fitCloud(dir, "sphere_10k", {delta});
@@ -86,8 +85,7 @@ TEST_SUITE("fit") {
   }
 
   TEST_CASE("fit data: sphere_180 with δ = 0.365 inward (the paper's Fig. 2)") {
-    const std::string dir = testing::sharedDataDir();
-    if (dir.empty()) return;
+    DUPLEXFIT_SHARED_DATA_DIR(dir);
     const FitResult s = fitCloud(dir, "sphere_180", {0.365});
     CHECK(s.report.e0 <= 1e-4);
     const Eigen::VectorXd onOffset = s.field.evaluate(fitDevice(), testing::fibonacciSphere(500, 0.135)).values;
@@ -99,8 +97,7 @@ TEST_SUITE("fit") {
   }
 
   TEST_CASE("fit data: cube_24k and notched_cube_24k: the inward offset has one component (gaps filled)") {
-    const std::string dir = testing::sharedDataDir();
-    if (dir.empty()) return;
+    DUPLEXFIT_SHARED_DATA_DIR(dir);
     for (const char* name : {"cube_24k", "notched_cube_24k"}) {
       CAPTURE(name);
       const FitResult r = fitCloud(dir, name, {0.05});

@@ -5,11 +5,11 @@
 #include <cstdlib>
 #include <string>
 
+#include "data.hpp"
 #include "duplexfit/fit.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/measure.hpp"
 #include "duplexfit/surfaces.hpp"
-#include "io/io_test_util.hpp"
 #include "test_device.hpp"
 
 using namespace duplexfit;
@@ -23,13 +23,9 @@ bool longTestsEnabled() {
 
 TEST_SUITE("long") {
   TEST_CASE("long: eight_110k at delta 0.05: one significant offset component on the exact offset, none spurious") {
-    if (!longTestsEnabled()) {
-      MESSAGE("skipped: set DUPLEXFIT_LONG_TESTS=1 (about a minute on 2 cores)");
-      return;
-    }
+    if (!longTestsEnabled()) DUPLEXFIT_SKIP("set DUPLEXFIT_LONG_TESTS=1 to run it (about a minute on 2 cores)");
     DUPLEXFIT_OPENCL_DEVICE(d);
-    const std::string dir = testing::sharedDataDir();
-    if (dir.empty()) return;
+    DUPLEXFIT_SHARED_DATA_DIR(dir);
     PointSet cloud = readPointCloud(dir + "/clouds/eight_110k.ply");
     cloud.mergeDuplicates();
     FitOptions options;

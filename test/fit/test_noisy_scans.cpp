@@ -9,12 +9,12 @@
 #include <string>
 #include <vector>
 
+#include "data.hpp"
 #include "duplexfit/fit.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/measure.hpp"
 #include "duplexfit/preprocess.hpp"
 #include "duplexfit/surfaces.hpp"
-#include "io/io_test_util.hpp"
 #include "test_device.hpp"
 
 using namespace duplexfit;
@@ -41,12 +41,10 @@ Fitted fitAndMesh(const Device& d, const PointSet& cloud, double smoothing, doub
 TEST_SUITE("preprocess") {
   TEST_CASE("noisy scans: denoise + s = 0.2 beats the raw fit against the ground truth; no spurious offset sheet") {
 #ifdef DUPLEXFIT_SANITIZED
-    MESSAGE("skipped in the sanitizer build (four fits of 35k-50k points; the Release suite runs it)");
-    return;
+    DUPLEXFIT_SKIP("in the sanitizer build (four fits of 35k-50k points; the Release suite runs it)");
 #endif
     DUPLEXFIT_OPENCL_DEVICE(d);
-    const std::string data = testing::sharedDataDir();
-    if (data.empty()) return;
+    DUPLEXFIT_SHARED_DATA_DIR(data);
     const double delta = 0.02;
     for (const std::string name : {"fandisk", "bunny"}) {
       CAPTURE(name);

@@ -10,11 +10,11 @@
 #include <string>
 #include <vector>
 
+#include "data.hpp"
 #include "duplexfit/fit.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/preprocess.hpp"
 #include "duplexfit/surfaces.hpp"
-#include "io/io_test_util.hpp"
 #include "shapes.hpp"
 #include "test_device.hpp"
 
@@ -136,8 +136,7 @@ std::size_t anchorCount(const FitReport& r) {
 
 TEST_SUITE("fit") {
   TEST_CASE("robust field: thin_torus_20k (and its noisy twin, denoised) has no phantom solid in its hole") {
-    const std::string dir = testing::sharedDataDir();
-    if (dir.empty()) return;
+    DUPLEXFIT_SHARED_DATA_DIR(dir);
     const double R = 0.42, r = 0.07;
     // Hole points farther than 0.1 (≫ 2 sample spacings) from the ring: f must be negative there.
     Points hole(4 * 16 + 1, 3);
@@ -150,7 +149,10 @@ TEST_SUITE("fit") {
     }
     for (const bool noisy : {false, true}) {
 #ifdef DUPLEXFIT_SANITIZED
-      if (noisy) continue;  // the sanitizer build runs the clean cloud only (each fit is ~10x slower there)
+      if (noisy) {  // the sanitizer build runs the clean cloud only (each fit is ~10x slower there)
+        DUPLEXFIT_SKIP_PART("the noisy twin thin_torus_20k_noise0.5pct, in the sanitizer build");
+        continue;
+      }
 #endif
       PointSet cloud = readPointCloud(dir + "/clouds/thin_torus_20k" + (noisy ? "_noise0.5pct" : "") + ".ply");
       cloud.mergeDuplicates();
@@ -215,8 +217,7 @@ TEST_SUITE("fit") {
 
   TEST_CASE("robust field: a solid with a handle gets no blob inside the loop") {
 #ifdef DUPLEXFIT_SANITIZED
-    MESSAGE("skipped in the sanitizer build (the thin-torus case covers the same code there; Release runs it)");
-    return;
+    DUPLEXFIT_SKIP("in the sanitizer build (the thin-torus case covers the same code there; Release runs it)");
 #endif
     // A ball (centre (−0.2, 0, 0), radius 0.25) and a ring (centre (0.2, 0, 0), R 0.2, r 0.05, axis y)
     // that enters it: one solid of genus 1; the loop's hole around (0.2, 0, 0) is 0.15 from both.
@@ -239,8 +240,7 @@ TEST_SUITE("fit") {
 
   TEST_CASE("robust field: a dumbbell whose neck is thinner than 2δ has exactly the truth's two offset pieces") {
 #ifdef DUPLEXFIT_SANITIZED
-    MESSAGE("skipped in the sanitizer build (the thin-torus case covers the same code there; Release runs it)");
-    return;
+    DUPLEXFIT_SKIP("in the sanitizer build (the thin-torus case covers the same code there; Release runs it)");
 #endif
     // Balls of radius 0.2 at x = ±0.3 joined by a neck of radius 0.04; δ = 0.06 inward: the exact offset
     // is two balls of radius 0.14 (the neck, thinner than 2δ, has no δ set), and f on the neck's axis is

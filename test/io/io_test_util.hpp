@@ -1,12 +1,11 @@
-// Helpers of the io tests: a self-removing temporary folder, whole-file byte access, a PLY
-// generator for every encoding and type, IoError message checks, the shared test data folder.
+// Helpers of the io tests: whole-file byte access, a PLY generator for every encoding and type, IoError
+// message checks (temporary folders and the shared data folder: support/temp_dir.hpp, support/data.hpp).
 #pragma once
 
 #include <doctest/doctest.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -18,63 +17,17 @@
 #include <string>
 #include <vector>
 
+#include "data.hpp"
 #include "duplexfit/error.hpp"
+#include "temp_dir.hpp"
 
 namespace duplexfit::testing {
 
-/// A fresh folder under the system temp folder, removed with its content on destruction.
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    path_ = std::filesystem::temp_directory_path() /
-            ("duplexfit-io-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    std::filesystem::remove_all(path_);
-    std::filesystem::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
+/// Writes `bytes` as the whole file (the calling test case stops when that fails).
+inline void writeBytes(const std::string& path, const std::string& bytes) { REQUIRE(writeFile(path, bytes)); }
 
-  /// The path of `name` inside the folder.
-  std::string file(const std::string& name) const { return (path_ / name).string(); }
-  const std::filesystem::path& path() const { return path_; }
-  /// Names of the entries in the folder, sorted.
-  std::vector<std::string> entries() const {
-    std::vector<std::string> names;
-    for (const auto& e : std::filesystem::directory_iterator(path_)) {
-      names.push_back(e.path().filename().string());
-    }
-    std::sort(names.begin(), names.end());
-    return names;
-  }
-
- private:
-  std::filesystem::path path_;
-};
-
-inline void writeBytes(const std::string& path, const std::string& bytes) {
-  // Remove first: truncating a file in place makes ext4 flush it (auto_da_alloc), which makes the
-  // thousands of rewrites of the fuzz test slow.
-  std::error_code ec;
-  std::filesystem::remove(path, ec);
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  REQUIRE(out.good());
-}
-
-inline std::string readBytes(const std::string& path) {
-  std::error_code ec;
-  const auto size = std::filesystem::file_size(path, ec);
-  if (ec) return {};
-  std::string bytes(static_cast<std::size_t>(size), '\0');
-  std::ifstream in(path, std::ios::binary);
-  in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  return bytes;
-}
+/// The bytes of a file; "" when it cannot be read.
+inline std::string readBytes(const std::string& path) { return readFile(path); }
 
 /// One property of a generated PLY element: a scalar of `type`, or a list with `countType`.
 struct GenProperty {
@@ -208,20 +161,6 @@ void checkIoError(Action&& action, const std::string& path,
   }
   INFO("path: " << path);
   CHECK_MESSAGE(thrown, "no IoError thrown");
-}
-
-/// The shared test data folder, or "" when it is missing. With CI=true a missing folder fails the
-/// calling test case; otherwise a message is printed and the caller returns.
-inline std::string sharedDataDir() {
-  const std::filesystem::path dir =
-      std::filesystem::path(DUPLEXFIT_SOURCE_DIR) / ".." / "shared" / "data";
-  if (std::filesystem::is_directory(dir / "clouds")) return dir.lexically_normal().string();
-  const char* ci = std::getenv("CI");
-  if (ci != nullptr && std::string(ci) == "true") {
-    FAIL("shared test data missing: " << dir.string());
-  }
-  MESSAGE("shared test data not found at " << dir.string() << "; skipping");
-  return {};
 }
 
 }  // namespace duplexfit::testing

@@ -13,6 +13,7 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/io.hpp"
 #include "io_test_util.hpp"
+#include "json_report.hpp"
 
 namespace {
 
@@ -326,39 +327,42 @@ TEST_CASE("mesh io: malformed mesh files are IoErrors naming face, vertex or lin
 }
 
 TEST_CASE("mesh io: the shared meshes read with the topology of meshes.json") {
-  const std::string data = duplexfit::testing::sharedDataDir();
-  if (data.empty()) return;
-  const std::string json = readBytes(data + "/meshes/meshes.json");
-  REQUIRE_FALSE(json.empty());
-  auto number = [&](std::size_t from, const char* key) {
-    const std::size_t at = json.find(std::string("\"") + key + "\"", from);
-    REQUIRE(at != std::string::npos);
-    return std::stod(json.substr(json.find(':', at) + 1));
-  };
+  DUPLEXFIT_SHARED_DATA_DIR(data);
+  using duplexfit::testing::Json;
+  const Json json = duplexfit::testing::readJsonFile(data + "/meshes/meshes.json");
+  // meshes.json is a list of {"file": "...", "vertices": V, "faces": F, ...} objects.
+  REQUIRE(json.is_array());
   int checked = 0;
-  for (std::size_t at = json.find("\"file\""); at != std::string::npos;
-       at = json.find("\"file\"", at + 1)) {
-    const std::size_t open = json.find('"', json.find(':', at)) + 1;
-    const std::string file = json.substr(open, json.find('"', open) - open);
-    const double faces = number(at, "faces");
+  for (const Json& entry : json) {
+    auto number = [&](const char* key) {
+      const double v = duplexfit::testing::jsonNumber(entry, std::string("/") + key);
+      INFO("key " << key);
+      REQUIRE_FALSE(std::isnan(v));
+      return v;
+    };
+    const Json name = duplexfit::testing::jsonAt(entry, "/file");
+    REQUIRE(name.is_string());
+    const std::string file = name.get<std::string>();
+    const double faces = number("faces");
 #ifndef NDEBUG
     if (faces > 100000) {  // unoptimised (sanitizer) builds: skip the largest scan to stay fast
+      DUPLEXFIT_SKIP_PART("the meshes of more than 100000 faces, in an unoptimised build");
       ++checked;
       continue;
     }
 #endif
     CAPTURE(file);
     const Mesh m = readMesh(data + "/" + file);
-    CHECK(static_cast<double>(m.vertices.rows()) == number(at, "vertices"));
+    CHECK(static_cast<double>(m.vertices.rows()) == number("vertices"));
     CHECK(static_cast<double>(m.faces.rows()) == faces);
     const MeshTopology t = analyzeTopology(m);
-    CHECK(static_cast<double>(t.eulerCharacteristic) == number(at, "euler_characteristic"));
-    CHECK(static_cast<double>(t.components) == number(at, "components"));
+    CHECK(static_cast<double>(t.eulerCharacteristic) == number("euler_characteristic"));
+    CHECK(static_cast<double>(t.components) == number("components"));
     CHECK(t.watertight());
     CHECK(t.manifold());
     CHECK(t.oriented());
-    CHECK(duplexfit::signedVolume(m) == doctest::Approx(number(at, "volume")).epsilon(1e-6));
-    CHECK(duplexfit::surfaceArea(m) == doctest::Approx(number(at, "area")).epsilon(1e-6));
+    CHECK(duplexfit::signedVolume(m) == doctest::Approx(number("volume")).epsilon(1e-6));
+    CHECK(duplexfit::surfaceArea(m) == doctest::Approx(number("area")).epsilon(1e-6));
     ++checked;
   }
   CHECK(checked >= 10);

@@ -16,6 +16,7 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/io.hpp"
 #include "io_test_util.hpp"
+#include "json_report.hpp"
 
 namespace {
 
@@ -312,25 +313,27 @@ TEST_CASE("point io: files without normals read with zero normals only when allo
 }
 
 TEST_CASE("point io: the shared clouds read with the manifest's point counts") {
-  const std::string data = duplexfit::testing::sharedDataDir();
-  if (data.empty()) return;
-  const std::string manifest = readBytes(data + "/clouds/manifest.json");
-  REQUIRE_FALSE(manifest.empty());
-  // The manifest lists {"file": "...", "points": N, ...} objects; a plain scan is enough here.
+  DUPLEXFIT_SHARED_DATA_DIR(data);
+  const duplexfit::testing::Json manifest = duplexfit::testing::readJsonFile(data + "/clouds/manifest.json");
+  // The manifest lists {"file": "...", "points": N, ...} objects under "clouds".
+  const duplexfit::testing::Json list = duplexfit::testing::jsonAt(manifest, "/clouds");
+  REQUIRE(list.is_array());
   std::vector<std::pair<std::string, std::size_t>> clouds;
-  for (std::size_t at = manifest.find("\"file\""); at != std::string::npos;
-       at = manifest.find("\"file\"", at + 1)) {
-    const std::size_t open = manifest.find('"', manifest.find(':', at)) + 1;
-    const std::string file = manifest.substr(open, manifest.find('"', open) - open);
-    const std::size_t points = manifest.find("\"points\"", at);
-    REQUIRE(points != std::string::npos);
-    clouds.emplace_back(file, std::stoull(manifest.substr(manifest.find(':', points) + 1)));
+  for (const duplexfit::testing::Json& entry : list) {
+    const duplexfit::testing::Json file = duplexfit::testing::jsonAt(entry, "/file");
+    const duplexfit::testing::Json points = duplexfit::testing::jsonAt(entry, "/points");
+    REQUIRE(file.is_string());
+    REQUIRE(points.is_number_unsigned());
+    clouds.emplace_back(file.get<std::string>(), points.get<std::size_t>());
   }
   CHECK(clouds.size() >= 20);
   for (const auto& [file, count] : clouds) {
     CAPTURE(file);
 #ifndef NDEBUG
-    if (count > 100000) continue;  // unoptimised (sanitizer) builds: skip the largest clouds
+    if (count > 100000) {  // unoptimised (sanitizer) builds: skip the largest clouds
+      DUPLEXFIT_SKIP_PART("the clouds of more than 100000 points, in an unoptimised build");
+      continue;
+    }
 #endif
     const std::string path = data + "/" + file;
     const PointCloudFile read = readPointCloudWithReport(path);

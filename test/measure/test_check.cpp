@@ -8,10 +8,10 @@
 #include <sstream>
 #include <string>
 
+#include "data.hpp"
 #include "duplexfit/io.hpp"
 #include "core/mesh_shapes.hpp"
 #include "duplexfit/measure.hpp"
-#include "io/io_test_util.hpp"
 #include "measure/measure_shapes.hpp"
 
 namespace {
@@ -153,8 +153,7 @@ TEST_CASE("check: self-intersections of overlapping spheres and of triangle pair
 }
 
 TEST_CASE("check: shared data meshes match their manifest") {
-  const std::string dir = testing::sharedDataDir();
-  if (dir.empty()) return;
+  DUPLEXFIT_SHARED_DATA_DIR(dir);
   struct Expect {
     const char* file;
     long long euler, genus;

@@ -6,11 +6,11 @@
 #include <cmath>
 #include <string>
 
+#include "data.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/fit.hpp"
 #include "duplexfit/preprocess.hpp"
-#include "io/io_test_util.hpp"
 #include "preprocess/preprocess_test_util.hpp"
 #include "test_device.hpp"
 
@@ -99,8 +99,7 @@ TEST_CASE("bilateral: noisy sphere, RMS radial error down, small radial bias") {
 }
 
 TEST_CASE("bilateral: shared noisy fandisk moves toward the clean surface") {
-  const std::string data = testing::sharedDataDir();
-  if (data.empty()) return;
+  DUPLEXFIT_SHARED_DATA_DIR(data);
   const PointSet clean = readPointCloud(data + "/clouds/fandisk_50k.ply");
   const PointSet noisy = readPointCloud(data + "/clouds/fandisk_50k_noise0.5pct.ply");
   REQUIRE(clean.size() == noisy.size());

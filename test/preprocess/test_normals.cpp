@@ -7,10 +7,10 @@
 #include <string>
 #include <vector>
 
+#include "data.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/preprocess.hpp"
-#include "io/io_test_util.hpp"
 #include "preprocess/preprocess_device.hpp"
 #include "preprocess/preprocess_test_util.hpp"
 #include "test_device.hpp"
@@ -69,8 +69,7 @@ void checkInvalid(F&& f, std::initializer_list<const char*> parts) {
 TEST_SUITE("preprocess") {
 
 TEST_CASE("normals: shared clean clouds, PCA accuracy and 100% outward") {
-  const std::string data = testing::sharedDataDir();
-  if (data.empty()) return;
+  DUPLEXFIT_SHARED_DATA_DIR(data);
   const Device ref = Device::reference();
   for (const std::string name : {"sphere_10k", "torus_10k", "bunny_35k", "fandisk_50k"}) {
     CAPTURE(name);

@@ -3,63 +3,33 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 #include <string>
 
-#include <sys/wait.h>
-#include <unistd.h>
-
+#include "cli_runner.hpp"
 #include "duplexfit/io.hpp"
+#include "json_report.hpp"
 #include "preprocess/preprocess_test_util.hpp"
-
-#ifdef DUPLEXFIT_CLI_PATH
+#include "temp_dir.hpp"
 
 namespace fs = std::filesystem;
 using namespace duplexfit;
 
 namespace {
 
-struct Run {
-  int status = -1;
-  std::string out, err;
-};
+using testing::CliRun;
+using testing::jsonAt;
+using testing::jsonNumber;
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
+/// A temporary folder for one test case; cli() runs the duplexfit command.
 class Scratch {
  public:
-  Scratch() : dir_(fs::temp_directory_path() / ("duplexfit-preprocess-cli-" + std::to_string(::getpid()))) {
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  ~Scratch() {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
-  Scratch(const Scratch&) = delete;
-  Scratch& operator=(const Scratch&) = delete;
   fs::path operator/(const std::string& name) const { return dir_ / name; }
-  Run cli(const std::string& args) const {
-    const fs::path o = dir_ / "stdout.txt", e = dir_ / "stderr.txt";
-    const std::string cmd = std::string(DUPLEXFIT_CLI_PATH) + " " + args + " > " + o.string() + " 2> " + e.string();
-    const int raw = std::system(cmd.c_str());
-    Run r;
-    r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-    r.out = slurp(o);
-    r.err = slurp(e);
-    return r;
-  }
+  CliRun cli(const std::string& args) const { return testing::runCli(args); }
 
  private:
-  fs::path dir_;
+  testing::TempDir dir_{"duplexfit-preprocess-cli"};
 };
 
 void writeXyz(const fs::path& p, const Points& x) {
@@ -73,17 +43,19 @@ void writeXyz(const fs::path& p, const Points& x) {
 TEST_SUITE("preprocess") {
 
 TEST_CASE("cli: denoise writes a filtered cloud and a JSON summary") {
+  DUPLEXFIT_REQUIRE_CLI();
   const Scratch s;
   const PointSet noisy = testing::noisySphere(3000, 0.5, 0.005);
   writePointCloud((s / "noisy.ply").string(), noisy);
-  const Run r = s.cli("denoise " + (s / "noisy.ply").string() + " -o " + (s / "out.ply").string() +
-                      " --device ref --json --quiet --iterations 2 --sigma-r 0.02");
+  const CliRun r = s.cli("denoise " + (s / "noisy.ply").string() + " -o " + (s / "out.ply").string() +
+                         " --device ref --json --quiet --iterations 2 --sigma-r 0.02");
   INFO(r.err);
   REQUIRE(r.status == 0);
-  CHECK(r.out.find("\"command\": \"denoise\"") != std::string::npos);
-  CHECK(r.out.find("\"sigma_range\": 0.02") != std::string::npos);
-  CHECK(r.out.find("\"iterations\": 2") != std::string::npos);
-  CHECK(r.out.find("\"filter\":") != std::string::npos);
+  const testing::Json j = testing::parseJson(r.out);
+  CHECK(jsonAt(j, "/command") == "denoise");
+  CHECK(jsonNumber(j, "/sigma_range") == doctest::Approx(0.02));
+  CHECK(jsonAt(j, "/iterations") == 2);
+  CHECK(jsonAt(j, "/seconds/filter").is_number());
   const PointSet out = readPointCloud((s / "out.ply").string());
   REQUIRE(out.size() == noisy.size());
   // Sparse sampling (3000 points) makes the outward bias of the tangent-plane projections large; the spread
@@ -93,33 +65,36 @@ TEST_CASE("cli: denoise writes a filtered cloud and a JSON summary") {
 }
 
 TEST_CASE("cli: normals of a cloud without normals") {
+  DUPLEXFIT_REQUIRE_CLI();
   const Scratch s;
   Points truth;
   const Points x = testing::fibonacciSphere(2000, 0.5, &truth);
   writeXyz(s / "bare.xyz", x);
-  const Run r = s.cli("normals " + (s / "bare.xyz").string() + " -o " + (s / "n.ply").string() +
-                      " --device ref --k 12 --json --quiet");
+  const CliRun r = s.cli("normals " + (s / "bare.xyz").string() + " -o " + (s / "n.ply").string() +
+                         " --device ref --k 12 --json --quiet");
   INFO(r.err);
   REQUIRE(r.status == 0);
-  CHECK(r.out.find("\"k\": 12") != std::string::npos);
-  CHECK(r.out.find("\"input_had_normals\": false") != std::string::npos);
-  CHECK(r.out.find("\"components\": 1") != std::string::npos);
+  const testing::Json j = testing::parseJson(r.out);
+  CHECK(jsonAt(j, "/k") == 12);
+  CHECK(jsonAt(j, "/input_had_normals") == false);
+  CHECK(jsonAt(j, "/components") == 1);
   const PointSet out = readPointCloud((s / "n.ply").string());
   REQUIRE(out.size() == 2000);
   for (Eigen::Index i = 0; i < out.normals().rows(); ++i) CHECK(out.normals().row(i).dot(truth.row(i)) > 0.99);
 
   // --keep-existing copies a cloud's own normals; without it they are re-estimated and compared.
-  const Run keep = s.cli("normals " + (s / "n.ply").string() + " -o " + (s / "k.ply").string() +
-                         " --device ref --keep-existing --json --quiet");
+  const CliRun keep = s.cli("normals " + (s / "n.ply").string() + " -o " + (s / "k.ply").string() +
+                            " --device ref --keep-existing --json --quiet");
   REQUIRE(keep.status == 0);
-  CHECK(keep.out.find("\"kept_existing\": true") != std::string::npos);
-  const Run again = s.cli("normals " + (s / "n.ply").string() + " -o " + (s / "k.ply").string() +
-                          " --device ref --json --quiet");
+  CHECK(jsonAt(testing::parseJson(keep.out), "/kept_existing") == true);
+  const CliRun again = s.cli("normals " + (s / "n.ply").string() + " -o " + (s / "k.ply").string() +
+                             " --device ref --json --quiet");
   REQUIRE(again.status == 0);
-  CHECK(again.out.find("\"agree_with_input_normals\": 1") != std::string::npos);
+  CHECK(jsonAt(testing::parseJson(again.out), "/agree_with_input_normals") == 1);
 }
 
 TEST_CASE("cli: preprocess errors leave no output") {
+  DUPLEXFIT_REQUIRE_CLI();
   const Scratch s;
   Points truth;
   writeXyz(s / "bare.xyz", testing::fibonacciSphere(500, 0.5, &truth));
@@ -128,7 +103,7 @@ TEST_CASE("cli: preprocess errors leave no output") {
   writeXyz(s / "plane.xyz", plane);
   const std::string out = (s / "o.ply").string();
 
-  Run r = s.cli("denoise " + (s / "bare.xyz").string() + " -o " + out + " --device ref");
+  CliRun r = s.cli("denoise " + (s / "bare.xyz").string() + " -o " + out + " --device ref");
   CHECK(r.status == 1);
   CHECK(r.err.find("bare.xyz") != std::string::npos);
   CHECK(r.err.find("no normals") != std::string::npos);
@@ -153,10 +128,8 @@ TEST_CASE("cli: preprocess errors leave no output") {
   // Flat input is accepted on request, with consistent (not outward) normals.
   r = s.cli("normals " + (s / "plane.xyz").string() + " -o " + out + " --device ref --allow-unoriented --json");
   CHECK(r.status == 0);
-  CHECK(r.out.find("\"ambiguous_components\": 1") != std::string::npos);
+  CHECK(jsonAt(testing::parseJson(r.out), "/ambiguous_components") == 1);
   CHECK(fs::exists(out));
 }
 
 }  // TEST_SUITE
-
-#endif  // DUPLEXFIT_CLI_PATH

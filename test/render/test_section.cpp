@@ -6,19 +6,17 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <string>
+#include <vector>
 
-#include <sys/wait.h>
-#include <unistd.h>
-
+#include "cli_runner.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/fit.hpp"
 #include "duplexfit/image.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/section.hpp"
 #include "io/io_test_util.hpp"
+#include "json_report.hpp"
 #include "shapes.hpp"
 #include "test_device.hpp"
 
@@ -136,33 +134,24 @@ void checkSphereSection(const SectionResult& r) {
   CHECK(stray == 0);
 }
 
-struct Run {
-  int status = -1;
-  std::string out, err;
-};
+using testing::CliRun;
+using testing::Json;
+using testing::jsonAt;
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+CliRun cli(const std::string& args) { return testing::runCli(args); }
 
-#ifdef DUPLEXFIT_CLI_PATH
-Run cli(const std::string& args, const fs::path& dir) {
-  const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-  const std::string cmd =
-      std::string(DUPLEXFIT_CLI_PATH) + " " + args + " > " + out.string() + " 2> " + err.string();
-  const int raw = std::system(cmd.c_str());
-  Run r;
-  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  r.out = slurp(out);
-  r.err = slurp(err);
-  fs::remove(out);
-  fs::remove(err);
-  return r;
+// The file names of a section --json output's "files" and "sections[].file" (one "?" per entry that is not
+// a string).
+std::vector<std::string> jsonFileNames(const Json& out, const std::string& pointer) {
+  std::vector<std::string> names;
+  const Json files = jsonAt(out, pointer);
+  if (!files.is_array()) return names;
+  for (const Json& f : files) {
+    const Json name = f.is_object() ? jsonAt(f, "/file") : f;
+    names.push_back(name.is_string() ? fs::path(name.get<std::string>()).filename().string() : "?");
+  }
+  return names;
 }
-#endif
 
 }  // namespace
 
@@ -340,15 +329,15 @@ TEST_SUITE("render") {
     CHECK_THROWS_AS(renderSection(Device::reference(), ImplicitField(), SectionPlane{2, 0.0}, o), InvalidArgument);
   }
 
-#ifdef DUPLEXFIT_CLI_PATH
   TEST_CASE("section CLI: three planes without --plane, one with it, JSON; failures leave no output") {
+    DUPLEXFIT_REQUIRE_CLI();
     testing::TempDir dir;
     const fs::path fieldPath = dir.path() / "sphere.dpxf";
     sphereField().save(fieldPath.string());
     const std::string field = fieldPath.string();
 
     // Three files OUT_x/y/z.png, the longer side as asked.
-    Run r = cli("section " + field + " -o " + dir.file("sec.png") + " --size 48 --device ref --quiet", dir.path());
+    CliRun r = cli("section " + field + " -o " + dir.file("sec.png") + " --size 48 --device ref --quiet");
     INFO("stderr: " << r.err);
     REQUIRE(r.status == 0);
     CHECK(r.err.empty());
@@ -361,25 +350,31 @@ TEST_SUITE("render") {
 
     // -o FOLDER: section_x.png ... inside it; --json names the files.
     fs::create_directory(dir.path() / "pics");
-    r = cli("section " + field + " -o " + dir.file("pics") + " --size 32 --device ref --json --quiet", dir.path());
+    r = cli("section " + field + " -o " + dir.file("pics") + " --size 32 --device ref --json --quiet");
     REQUIRE(r.status == 0);
     for (const char* name : {"section_x.png", "section_y.png", "section_z.png"}) {
       CHECK(fs::exists(dir.path() / "pics" / name));
-      CHECK(r.out.find(name) != std::string::npos);
     }
-    CHECK(r.out.find("\"pixel_size\"") != std::string::npos);
-    CHECK(r.out.find("\"range\"") != std::string::npos);
+    const Json three = testing::parseJson(r.out);
+    const std::vector<std::string> names{"section_x.png", "section_y.png", "section_z.png"};
+    CHECK(jsonFileNames(three, "/files") == names);
+    CHECK(jsonFileNames(three, "/sections") == names);
+    for (const Json& section : jsonAt(three, "/sections")) {
+      CHECK(jsonAt(section, "/pixel_size").is_number());
+      CHECK(jsonAt(section, "/range").is_number());
+    }
 
     // One plane, with points; the picture is the library's.
     const fs::path cloud = dir.path() / "cloud.ply";
     writePointCloud(cloud.string(), sphereCloud());
     r = cli("section " + field + " --plane z=0.1 --size 40 --points " + cloud.string() + " --band 0.03 -o " +
-                dir.file("one.png") + " --device ref --json",
-            dir.path());
+                dir.file("one.png") + " --device ref --json");
     INFO("stderr: " << r.err);
     REQUIRE(r.status == 0);
-    CHECK(r.out.find("\"plane\": \"z=0.1\"") != std::string::npos);
-    CHECK(r.out.find("\"points_drawn\"") != std::string::npos);
+    const Json single = testing::parseJson(r.out);
+    CHECK(jsonFileNames(single, "/files") == std::vector<std::string>{"one.png"});
+    CHECK(jsonAt(single, "/sections/0/plane") == "z=0.1");
+    CHECK(jsonAt(single, "/sections/0/points_drawn").is_number());
     CHECK(r.err.find("section z=0.1") != std::string::npos);  // progress without --quiet
     const Image one = readPng(dir.file("one.png"));
     SectionOptions o;
@@ -392,7 +387,7 @@ TEST_SUITE("render") {
     const fs::path outDir = dir.path() / "out";
     fs::create_directory(outDir);
     auto expectFailure = [&](const std::string& args, int status, std::initializer_list<const char*> parts) {
-      const Run f = cli("section " + args + " --device ref --quiet", dir.path());
+      const CliRun f = cli("section " + args + " --device ref --quiet");
       INFO("args: " << args << "\nstderr: " << f.err);
       CHECK(f.status == status);
       for (const char* part : parts) CHECK(f.err.find(part) != std::string::npos);
@@ -418,5 +413,4 @@ TEST_SUITE("render") {
     // An unwritable destination.
     expectFailure(field + " --size 24 -o " + (outDir / "no" / "such" / "s.png").string(), 2, {"s_x.png"});
   }
-#endif
 }

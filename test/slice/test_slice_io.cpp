@@ -4,17 +4,15 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
+#include <string>
 
-#include <sys/wait.h>
-#include <unistd.h>
-
+#include "cli_runner.hpp"
 #include "duplexfit/error.hpp"
+#include "json_report.hpp"
 #include "slice_checks.hpp"
 #include "slice_fixtures.hpp"
+#include "temp_dir.hpp"
 
 using namespace duplexfit;
 using namespace duplexfit::slicetest;
@@ -22,21 +20,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("duplexfit-slice-test-" + std::to_string(::getpid())) / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path scratch(const std::string& name) { return testing::scratchDir("duplexfit-slice-test", name); }
 
-std::string readText(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+std::string readText(const fs::path& p) { return testing::readFile(p); }
 
-void writeText(const fs::path& p, const std::string& text) { std::ofstream(p, std::ios::binary) << text; }
+void writeText(const fs::path& p, const std::string& text) { REQUIRE(testing::writeFile(p, text)); }
 
 // The result's loops and the CLI file's polylines agree (heights, orientation flags, points).
 void expectSameLoops(const SliceResult& r, const CliFile& f, double tol) {
@@ -158,19 +146,16 @@ TEST_SUITE("slice") {
     CHECK_THROWS_AS(writeSliceSvg((dir / "no.svg").string(), r, 9999), InvalidArgument);
   }
 
-#ifdef DUPLEXFIT_CLI_PATH
   TEST_CASE("slice: the command writes the CLI file, SVG, JSON and masks; bad input leaves nothing") {
+    DUPLEXFIT_REQUIRE_CLI();
     const fs::path dir = scratch("cmd");
     const fs::path field = dir / "torus.dpxf";
     fittedUprightTorus().save(field.string());
     const std::string spec = sliceDevice().info().spec;
     auto run = [&](const std::string& args, std::string* err = nullptr) {
-      const fs::path errFile = dir / "stderr.txt";
-      const std::string cmd = std::string(DUPLEXFIT_CLI_PATH) + " slice " + args + " > " + (dir / "stdout.txt").string() +
-                              " 2> " + errFile.string();
-      const int raw = std::system(cmd.c_str());
-      if (err) *err = readText(errFile);
-      return WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+      const testing::CliRun r = testing::runCli("slice " + args);
+      if (err) *err = r.err;
+      return r.status;
     };
     const fs::path out = dir / "out";
     std::string err;
@@ -191,11 +176,19 @@ TEST_SUITE("slice") {
     std::size_t white = 0;
     for (std::uint8_t p : m.pixels) white += p != 0 ? 1 : 0;
     CHECK(static_cast<double>(white) * 1e-4 == doctest::Approx(r.layers[39].area).epsilon(0.1));
-    const std::string json = readText(out / "slices.json");
-    CHECK(json.find("\"layer_count\": " + std::to_string(r.layers.size())) != std::string::npos);
-    CHECK(json.find("\"mode\": \"shell\"") != std::string::npos);
-    for (const char* key : {"\"heights\"", "\"thickness\"", "\"area\"", "\"loops\"", "\"seconds\""}) {
-      CHECK_MESSAGE(json.find(key) != std::string::npos, key);
+    const testing::Json json = testing::readJsonFile(out / "slices.json");
+    CHECK(testing::jsonAt(json, "/layer_count") == r.layers.size());
+    CHECK(testing::jsonAt(json, "/mode") == "shell");
+    CHECK(testing::jsonAt(json, "/heights").size() == r.layers.size());
+    CHECK(testing::jsonAt(json, "/thickness").is_object());
+    CHECK(testing::jsonAt(json, "/loops").is_number());
+    CHECK(testing::jsonAt(json, "/seconds").is_object());
+    const testing::Json layers = testing::jsonAt(json, "/layers");
+    CHECK(layers.size() == r.layers.size());
+    for (const testing::Json& layer : layers) {
+      CHECK(testing::jsonAt(layer, "/area").is_number());
+      CHECK(testing::jsonAt(layer, "/thickness").is_number());
+      CHECK(testing::jsonAt(layer, "/loops").is_number());
     }
     // Uniform layers along x with per-layer SVGs.
     const fs::path out2 = dir / "out2";
@@ -235,5 +228,4 @@ TEST_SUITE("slice") {
       CHECK(fs::is_empty(bad));
     }
   }
-#endif
 }
