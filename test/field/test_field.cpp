@@ -65,7 +65,7 @@ Points randomQueries(const ImplicitField& f, int n, unsigned seed) {
 
 }  // namespace
 
-TEST_SUITE("fit") {
+TEST_SUITE("field") {
   TEST_CASE("field: gradient and Hessian agree with finite differences of the reference value") {
     const ImplicitField f = randomField(1);
     const Points q = randomQueries(f, 40, 2);

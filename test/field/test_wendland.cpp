@@ -74,7 +74,7 @@ void requireSortedColumns(const CsrMatrix& a) {
 
 }  // namespace
 
-TEST_SUITE("fit") {
+TEST_SUITE("field") {
   TEST_CASE("wendland: values at 0 and 1, zero beyond the support, derivative") {
     CHECK(wendland(0.0) == 1.0);
     CHECK(wendland(1.0) == 0.0);
