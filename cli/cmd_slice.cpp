@@ -13,7 +13,6 @@
 #include <unistd.h>
 
 #include "commands.hpp"
-#include "staging.hpp"
 #include "duplexfit/atomic_file.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/field.hpp"
@@ -118,7 +117,7 @@ int cmdSlice(Args& args) {
     const double h = (size[(used.axis + 2) % 3] + 4 * used.grid) / pixel;
     if (w > 65536.0 || h > 65536.0) throw UsageError("--png-xy " + std::to_string(pixel) + " gives masks larger than 65536 pixels a side");
   }
-  Staging staging(outDir);  // fails early, before slicing, if the folder is unusable
+  StagedFolder staging(outDir);  // fails early, before slicing, if the folder is unusable
   log(std::string("slicing ") + input + " along " + "xyz"[used.axis] + ", mode " + sliceModeName(used.mode) +
       (used.layer > 0.0 ? ", uniform layers " + std::to_string(used.layer)
                         : ", cusp " + std::to_string(used.cusp) + ", layers " + std::to_string(used.minLayer) + " to " +
