@@ -12,6 +12,8 @@ packages=(
   libflann-dev liblz4-dev              # FLANN k-d tree (neighbour queries); lz4 is linked by its headers
   doctest-dev                          # unit tests
   libpng-dev                           # PNG output (section pictures, slice masks)
+  nlohmann-json3-dev                   # JSON output (report.json, --json), header-only
+  libcli11-dev                         # command-line parsing of the duplexfit tool, header-only
   clinfo                               # device diagnostics
 )
 missing=()

@@ -1,100 +1,119 @@
 // report.json of a pipeline run: the keys and structure the CLI has always written (tests and bench/*.py
-// read them; add keys, never rename or remove one).
+// read them; add keys, never rename or remove one). nlohmann::ordered_json keeps the keys in this order;
+// doubles are written with the shortest digits that round-trip, non-finite ones as null.
 #include <sys/resource.h>
 
+#include <nlohmann/json.hpp>
 #include <ostream>
 
 #include "duplexfit/pipeline.hpp"
-#include "pipeline/json_writer.hpp"
 
 namespace duplexfit {
 
 namespace {
 
-using detail::JsonWriter;
+using Json = nlohmann::ordered_json;
 
-void writeTopology(JsonWriter& w, const MeshTopology& t) {
-  w.beginObject()
-      .field("vertices", t.vertices)
-      .field("faces", t.faces)
-      .field("components", t.components)
-      .field("watertight", t.watertight())
-      .field("manifold", t.manifold())
-      .field("oriented", t.oriented())
-      .field("euler_characteristic", static_cast<long long>(t.eulerCharacteristic))
-      .endObject();
+Json topologyJson(const MeshTopology& t) {
+  return Json{{"vertices", t.vertices},
+              {"faces", t.faces},
+              {"components", t.components},
+              {"watertight", t.watertight()},
+              {"manifold", t.manifold()},
+              {"oriented", t.oriented()},
+              {"euler_characteristic", static_cast<long long>(t.eulerCharacteristic)}};
 }
 
-void writeFitReport(JsonWriter& w, const FitReport& rep) {
-  w.field("zero_normals", rep.zeroNormals).field("device", rep.device).field("precision", rep.precision);
-  w.key("offsets").beginArray();
-  for (double d : rep.offsets) w.value(d);
-  w.endArray();
-  w.field("off_surface_side", rep.offSurfaceSide).field("sigma0", rep.sigma0).field("sigma1", rep.sigma1);
-  w.field("levels", rep.levels).field("stopped_early", rep.stoppedEarly);
-  w.key("level_reports").beginArray();
+/// The fit's keys, added to `w`.
+void addFitReport(Json& w, const FitReport& rep) {
+  w["zero_normals"] = rep.zeroNormals;
+  w["device"] = rep.device;
+  w["precision"] = rep.precision;
+  w["offsets"] = rep.offsets;
+  w["off_surface_side"] = rep.offSurfaceSide;
+  w["sigma0"] = rep.sigma0;
+  w["sigma1"] = rep.sigma1;
+  w["levels"] = rep.levels;
+  w["stopped_early"] = rep.stoppedEarly;
+  Json levels = Json::array();
   for (const LevelReport& l : rep.levelReports) {
-    w.beginObject().field("level", l.level).field("sigma", l.sigma).field("surface_points", l.surfacePoints);
-    w.key("offset_candidates").beginArray();
-    for (auto v : l.offsetCandidates) w.value(v);
-    w.endArray().key("offset_kept").beginArray();
-    for (auto v : l.offsetKept) w.value(v);
-    w.endArray();
-    w.field("off_surface_candidates", l.offSurfaceCandidates).field("off_surface_kept", l.offSurfaceKept);
-    w.key("offset_medial").beginArray();
-    for (auto v : l.offsetMedial) w.value(v);
-    w.endArray().field("off_surface_medial", l.offSurfaceMedial);
-    w.key("anchors").beginObject().field("inside", l.anchorsInside).field("outside", l.anchorsOutside);
-    w.field("skipped", l.anchorsSkipped).field("spacing", l.anchorSpacing).endObject();
-    w.field("merged_centres", l.mergedCentres).field("centres", l.centres).field("nonzeros", l.nonZeros);
-    w.field("max_residual_before", l.maxResidualBefore);
-    w.key("cg").beginObject().field("converged", l.solve.converged).field("stop_reason", stopReasonName(l.solve.reason));
-    w.field("iterations", l.solve.iterations).field("relative_residual", l.solve.relativeResidual);
-    w.field("tolerance", l.solve.tolerance).endObject();
-    w.key("seconds").beginObject().field("constraints", l.secondsConstraints).field("residual", l.secondsResidual);
-    w.field("assembly", l.secondsAssembly).field("solve", l.secondsSolve).endObject();
-    w.endObject();
+    levels.push_back(Json{
+        {"level", l.level},
+        {"sigma", l.sigma},
+        {"surface_points", l.surfacePoints},
+        {"offset_candidates", l.offsetCandidates},
+        {"offset_kept", l.offsetKept},
+        {"off_surface_candidates", l.offSurfaceCandidates},
+        {"off_surface_kept", l.offSurfaceKept},
+        {"offset_medial", l.offsetMedial},
+        {"off_surface_medial", l.offSurfaceMedial},
+        {"anchors",
+         {{"inside", l.anchorsInside}, {"outside", l.anchorsOutside}, {"skipped", l.anchorsSkipped},
+          {"spacing", l.anchorSpacing}}},
+        {"merged_centres", l.mergedCentres},
+        {"centres", l.centres},
+        {"nonzeros", l.nonZeros},
+        {"max_residual_before", l.maxResidualBefore},
+        {"cg",
+         {{"converged", l.solve.converged}, {"stop_reason", stopReasonName(l.solve.reason)},
+          {"iterations", l.solve.iterations}, {"relative_residual", l.solve.relativeResidual},
+          {"tolerance", l.solve.tolerance}}},
+        {"seconds",
+         {{"constraints", l.secondsConstraints}, {"residual", l.secondsResidual}, {"assembly", l.secondsAssembly},
+          {"solve", l.secondsSolve}}}});
   }
-  w.endArray();
-  w.field("E0", rep.e0).key("Edelta").beginArray();
-  for (double e : rep.eDelta) w.value(e);
-  w.endArray();
+  w["level_reports"] = std::move(levels);
+  w["E0"] = rep.e0;
+  w["Edelta"] = rep.eDelta;
   const OffsetCorrectionReport& c = rep.correction;
-  w.key("offset_correction").beginObject().field("applied", c.applied).field("sigma", c.sigma);
-  w.field("points", c.points).field("nonzeros", c.nonZeros).field("mean_before", c.meanBefore);
-  w.field("max_before", c.maxBefore).field("cg_iterations", c.solve.iterations);
-  w.field("cg_converged", c.solve.converged).field("seconds", c.seconds).endObject();
-  w.field("winding_seconds", rep.secondsWinding);
+  w["offset_correction"] = Json{{"applied", c.applied},         {"sigma", c.sigma},
+                                {"points", c.points},           {"nonzeros", c.nonZeros},
+                                {"mean_before", c.meanBefore},  {"max_before", c.maxBefore},
+                                {"cg_iterations", c.solve.iterations}, {"cg_converged", c.solve.converged},
+                                {"seconds", c.seconds}};
+  w["winding_seconds"] = rep.secondsWinding;
 }
 
-void writeSelfCheck(JsonWriter& w, const SelfCheckReport& r, const std::vector<std::string>& meshNames) {
-  w.key("self_check").beginObject().field("ok", r.ok()).field("points_checked", r.pointsChecked);
-  w.field("point_tolerance", r.pointTolerance).field("min_component", r.minAreaFraction);
-  w.field("min_offset_component", r.minOffsetAreaFraction);
-  w.key("surfaces").beginArray();
+Json vec3(const Eigen::Vector3d& v) { return Json::array({v.x(), v.y(), v.z()}); }
+
+Json selfCheckJson(const SelfCheckReport& r, const std::vector<std::string>& meshNames) {
+  Json surfaces = Json::array();
   for (const SurfaceSelfCheck& s : r.surfaces) {
-    w.beginObject().field("surface", s.surface).field("file", meshNames[static_cast<std::size_t>(s.surface)]);
-    w.field("iso", s.iso).field("components", s.components).field("faces", s.faces).field("area", s.area);
-    w.field("issues", s.issues);
-    w.key("dropped").beginObject().field("components", s.dropped.components).field("faces", s.dropped.faces);
-    w.field("area", s.dropped.area).field("area_fraction", s.dropped.areaFraction).endObject();
-    w.endObject();
+    surfaces.push_back(Json{{"surface", s.surface},
+                            {"file", meshNames[static_cast<std::size_t>(s.surface)]},
+                            {"iso", s.iso},
+                            {"components", s.components},
+                            {"faces", s.faces},
+                            {"area", s.area},
+                            {"issues", s.issues},
+                            {"dropped",
+                             {{"components", s.dropped.components}, {"faces", s.dropped.faces},
+                              {"area", s.dropped.area}, {"area_fraction", s.dropped.areaFraction}}}});
   }
-  w.endArray().key("issues").beginArray();
+  Json issues = Json::array();
   for (const ComponentIssue& i : r.issues) {
-    w.beginObject().field("surface", i.surface).field("file", meshNames[static_cast<std::size_t>(i.surface)]);
-    w.field("iso", i.iso).field("component", i.component).field("why", componentIssueName(i.why));
-    w.field("faces", i.faces).field("vertices", i.vertices).field("area", i.area);
-    w.field("area_fraction", i.areaFraction);
-    w.key("box").beginObject().key("min").beginArray();
-    for (int k = 0; k < 3; ++k) w.value(i.box.min()[k]);
-    w.endArray().key("max").beginArray();
-    for (int k = 0; k < 3; ++k) w.value(i.box.max()[k]);
-    w.endArray().endObject();
-    w.field("mean_distance", i.meanDistance).field("mean_deviation", i.meanDeviation);
-    w.field("nearest_input_point", i.nearestInputPoint).endObject();
+    issues.push_back(Json{{"surface", i.surface},
+                          {"file", meshNames[static_cast<std::size_t>(i.surface)]},
+                          {"iso", i.iso},
+                          {"component", i.component},
+                          {"why", componentIssueName(i.why)},
+                          {"faces", i.faces},
+                          {"vertices", i.vertices},
+                          {"area", i.area},
+                          {"area_fraction", i.areaFraction},
+                          {"box", {{"min", vec3(i.box.min())}, {"max", vec3(i.box.max())}}},
+                          {"mean_distance", i.meanDistance},
+                          {"mean_deviation", i.meanDeviation},
+                          {"nearest_input_point", i.nearestInputPoint}});
   }
-  w.endArray().field("seconds", r.seconds).endObject();
+  return Json{{"ok", r.ok()},
+              {"points_checked", r.pointsChecked},
+              {"point_tolerance", r.pointTolerance},
+              {"min_component", r.minAreaFraction},
+              {"min_offset_component", r.minOffsetAreaFraction},
+              {"surfaces", std::move(surfaces)},
+              {"issues", std::move(issues)},
+              {"seconds", r.seconds}};
 }
 
 }  // namespace
@@ -106,78 +125,93 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
   const bool separate = report.separate;
   const std::vector<std::string> meshNames = pipelineMeshNames(result, meshFormat);
   const std::vector<std::string> fieldNames = pipelineFieldNames(result);
-  JsonWriter w(out);
-  w.beginObject().field("input", report.input).field("points", report.read.points);
-  w.field("duplicates_merged", report.duplicatesMerged);
-  w.field("mode", separate ? "separate" : "duplex").field("side_test", report.sideTest);
-  w.key("preprocessing").beginObject();
-  w.key("normals");
+  Json w;
+  w["input"] = report.input;
+  w["points"] = report.read.points;
+  w["duplicates_merged"] = report.duplicatesMerged;
+  w["mode"] = separate ? "separate" : "duplex";
+  w["side_test"] = report.sideTest;
+  Json normals;  // null unless estimated
   if (report.normals) {
     const NormalReport& n = *report.normals;
-    w.beginObject().field("method", "PCA + Riemannian MST propagation + enclosed-volume sign");
-    w.field("k", n.k).field("graph_k", n.graphK).field("input_had_normals", report.read.normals);
-    w.field("components", n.components).field("flipped_components", n.flippedComponents);
-    w.field("ambiguous_components", n.ambiguousComponents).field("nested_components", n.nestedComponents);
-    w.field("degenerate", n.degenerate).field("non_planar", n.nonPlanar).field("seconds", n.seconds).endObject();
-  } else {
-    w.null();
+    normals = Json{{"method", "PCA + Riemannian MST propagation + enclosed-volume sign"},
+                   {"k", n.k},
+                   {"graph_k", n.graphK},
+                   {"input_had_normals", report.read.normals},
+                   {"components", n.components},
+                   {"flipped_components", n.flippedComponents},
+                   {"ambiguous_components", n.ambiguousComponents},
+                   {"nested_components", n.nestedComponents},
+                   {"degenerate", n.degenerate},
+                   {"non_planar", n.nonPlanar},
+                   {"seconds", n.seconds}};
   }
-  w.key("denoise");
+  Json denoise;
   if (report.denoise) {
     const BilateralReport& b = *report.denoise;
-    w.beginObject().field("method", "bilateral point filter (docs/method.md section 9)");
-    w.field("sigma_spatial", b.sigmaSpatial).field("sigma_range", b.sigmaRange).field("radius", b.radius);
-    w.field("area_sigma", b.areaSigma).field("iterations", b.iterations).field("symmetric_range", b.symmetricRange);
-    w.field("mean_neighbors", b.meanNeighbors).field("moved", b.moved);
-    w.field("max_displacement", b.maxDisplacement).field("mean_displacement", b.meanDisplacement);
-    w.field("seconds", b.seconds).endObject();
-  } else {
-    w.null();
+    denoise = Json{{"method", "bilateral point filter (docs/method.md section 9)"},
+                   {"sigma_spatial", b.sigmaSpatial},
+                   {"sigma_range", b.sigmaRange},
+                   {"radius", b.radius},
+                   {"area_sigma", b.areaSigma},
+                   {"iterations", b.iterations},
+                   {"symmetric_range", b.symmetricRange},
+                   {"mean_neighbors", b.meanNeighbors},
+                   {"moved", b.moved},
+                   {"max_displacement", b.maxDisplacement},
+                   {"mean_displacement", b.meanDisplacement},
+                   {"seconds", b.seconds}};
   }
-  w.endObject();
+  w["preprocessing"] = Json{{"normals", std::move(normals)}, {"denoise", std::move(denoise)}};
   if (!separate) {
-    writeFitReport(w, rep);
+    addFitReport(w, rep);
   } else {
-    w.field("device", rep.device).field("precision", rep.precision).key("offsets").beginArray();
-    for (double d : rep.offsets) w.value(d);
-    w.endArray();
-    w.field("E0", rep.e0).key("Edelta").beginArray();
-    for (double e : rep.eDelta) w.value(e);
-    w.endArray();
-    w.key("fits").beginArray();
+    w["device"] = rep.device;
+    w["precision"] = rep.precision;
+    w["offsets"] = rep.offsets;
+    w["E0"] = rep.e0;
+    w["Edelta"] = rep.eDelta;
+    Json fits = Json::array();
     for (std::size_t i = 0; i < report.separateFits.size(); ++i) {
-      w.beginObject().field("surface", i == 0 ? std::string("zero") : "offset" + std::to_string(i));
-      w.field("delta", i == 0 ? 0.0 : rep.offsets[i - 1]);
-      w.field("fitted_points", report.separateFittedPoints[i]);
-      writeFitReport(w, report.separateFits[i]);
-      w.endObject();
+      Json f{{"surface", i == 0 ? std::string("zero") : "offset" + std::to_string(i)},
+             {"delta", i == 0 ? 0.0 : rep.offsets[i - 1]},
+             {"fitted_points", report.separateFittedPoints[i]}};
+      addFitReport(f, report.separateFits[i]);
+      fits.push_back(std::move(f));
     }
-    w.endArray();
+    w["fits"] = std::move(fits);
   }
-  w.key("meshes").beginArray();
+  Json meshes = Json::array();
   for (std::size_t i = 0; i < result.surfaces.size(); ++i) {
     const PipelineSurface& s = result.surfaces[i];
-    w.beginObject().field("file", meshNames[i]).field("iso", s.iso);
-    w.field("field", fieldNames[s.field]).key("topology");
-    writeTopology(w, s.topology);
-    w.endObject();
+    meshes.push_back(Json{{"file", meshNames[i]},
+                          {"iso", s.iso},
+                          {"field", fieldNames[s.field]},
+                          {"topology", topologyJson(s.topology)}});
   }
-  w.endArray();
-  writeSelfCheck(w, report.selfCheck, meshNames);
-  w.key("grid").beginObject().field("nx", report.grid.cells.x()).field("ny", report.grid.cells.y());
-  w.field("nz", report.grid.cells.z()).field("cell", report.grid.cellSize().maxCoeff());
-  w.field("evaluated_fraction", report.gridStats.evaluatedFraction()).field("box_growths", report.boxGrowths);
-  w.field("continued_cells", report.gridStats.continuedCells).field("touches_boundary", report.touchesBoundary);
-  w.field("sampler_seconds", report.gridStats.samplerSeconds);
-  w.field("extraction_seconds", report.gridStats.extractionSeconds);
-  w.endObject();
-  w.key("seconds").beginObject().field("read", report.secondsRead).field("hierarchy", rep.secondsHierarchy);
-  w.field("fit", rep.secondsTotal).field("polygonize", report.secondsPolygonize).field("write", writeSeconds);
-  w.field("total", report.secondsTotal + writeSeconds).endObject();
+  w["meshes"] = std::move(meshes);
+  w["self_check"] = selfCheckJson(report.selfCheck, meshNames);
+  w["grid"] = Json{{"nx", report.grid.cells.x()},
+                   {"ny", report.grid.cells.y()},
+                   {"nz", report.grid.cells.z()},
+                   {"cell", report.grid.cellSize().maxCoeff()},
+                   {"evaluated_fraction", report.gridStats.evaluatedFraction()},
+                   {"box_growths", report.boxGrowths},
+                   {"continued_cells", report.gridStats.continuedCells},
+                   {"touches_boundary", report.touchesBoundary},
+                   {"sampler_seconds", report.gridStats.samplerSeconds},
+                   {"extraction_seconds", report.gridStats.extractionSeconds}};
+  w["seconds"] = Json{{"read", report.secondsRead},
+                      {"hierarchy", rep.secondsHierarchy},
+                      {"fit", rep.secondsTotal},
+                      {"polygonize", report.secondsPolygonize},
+                      {"write", writeSeconds},
+                      {"total", report.secondsTotal + writeSeconds}};
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
-  w.field("peak_rss_mib", static_cast<double>(usage.ru_maxrss) / 1024.0);
-  w.endObject();
+  w["peak_rss_mib"] = static_cast<double>(usage.ru_maxrss) / 1024.0;
+  // Paths are bytes: invalid UTF-8 is replaced (U+FFFD) instead of failing the whole report.
+  out << w.dump(2, ' ', false, Json::error_handler_t::replace) << '\n';
 }
 
 }  // namespace duplexfit
