@@ -102,20 +102,6 @@ class Args {
   std::vector<std::string> positional_;
 };
 
-/// --`name` as an area fraction in [0, 1) (--min-component, --min-offset-component).
-inline double fractionOption(Args& args, const char* name, double fallback) {
-  const double f = args.num(name, fallback);
-  if (!(f >= 0.0 && f < 1.0)) throw UsageError(std::string("--") + name + " must be an area fraction in [0, 1)");
-  return f;
-}
-
-/// --format: "ply" (default), "obj" or "stl".
-inline std::string meshFormatOption(Args& args) {
-  const std::string f = args.str("format", "ply");
-  if (f != "ply" && f != "obj" && f != "stl") throw UsageError("--format must be ply, obj or stl");
-  return f;
-}
-
 /// Exit codes (README): 1 usage, 2 I/O, 3 device, 4 numerical failure with --strict.
 constexpr int kUsage = 1, kIo = 2, kDevice = 3, kNumerical = 4;
 

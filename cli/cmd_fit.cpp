@@ -6,62 +6,66 @@
 #include <iostream>
 
 #include "commands.hpp"
+#include "options.hpp"
 #include "progress.hpp"
 #include "duplexfit/pipeline.hpp"
 
 namespace duplexfit::cli {
 
-const std::vector<std::string> kFitValued = {"offset", "output", "device", "precision", "validity-tol", "levels",
-                                             "smoothing", "fit-tol", "tol", "max-iterations", "cell", "resolution",
-                                             "format", "alpha", "anchor-skip", "normals-k", "denoise-sigma-s",
-                                             "denoise-sigma-r", "denoise-radius", "denoise-iterations",
-                                             "min-component", "min-offset-component"};
-
-int cmdFit(Args& args) {
+int cmdFit(int argc, char** argv) {
   const Timer timer;
-  StderrProgress progress(args.flag("quiet"));
+  CLI::App app("fit one field to an oriented cloud and write its meshes, field(s) and report.json", "fit");
   PipelineOptions o;
   FitOptions& fit = o.fit;
-  fit.offsets = parseNumberList(args.str("offset", ""), "offset");
-  fit.offsetsRelative = args.flag("offset-rel");
-  fit.normalsInward = args.flag("normals-inward");
-  fit.validityTolerance = args.num("validity-tol", fit.validityTolerance);
-  fit.levels = static_cast<int>(args.integer("levels", 0));
-  fit.alpha = args.num("alpha", fit.alpha);
-  o.denoise = args.flag("denoise");
+  DeviceOptions device;
+  bool quiet = false, strict = false;
+  std::string input, offsets, format = "ply", outDir = ".";
+  app.add_option("INPUT", input, "PLY or XYZ \"x y z nx ny nz\" cloud, normals outward");
+  app.add_option("--offset", offsets, "signed offsets D[,D..] in input units, positive = inward")->type_name("D");
+  app.add_flag("--offset-rel", fit.offsetsRelative, "offsets are fractions of the bounding box's largest side");
+  app.add_option("-o,--output", outDir, "output folder (default: current folder)")->type_name("DIR");
+  addDeviceOptions(app, device);
+  addQuiet(app, quiet);
+  app.add_flag("--strict", strict, "exit with status 4 if a level's CG fails or the self-check finds an issue");
+  app.add_flag("--normals-inward", fit.normalsInward, "the input normals point into the solid");
+  addNumber(app, "validity-tol", fit.validityTolerance, "offset validity tolerance (default 0.01)");
+  addInteger(app, "levels", fit.levels, "number of levels (default: from the point density)");
+  addNumber(app, "alpha", fit.alpha, "sigma_1 = alpha * bounding-box diagonal (default 0.75)");
+  addNumber(app, "smoothing", fit.smoothing, "approximation mode, lambda_k = s k (default 0; 0.2 with --denoise)");
+  addNumber(app, "fit-tol", fit.fitTolerance, "stop early when the residual at the next level's centres is below it");
+  addNumber(app, "tol", fit.solver.relativeTolerance, "CG relative tolerance");
+  addInteger(app, "max-iterations", fit.solver.maxIterations, "CG iteration cap");
+  addNumber(app, "cell", o.surface.cell, "marching grid cell size");
+  addInteger(app, "resolution", o.surface.resolution, "marching grid cells along the longest side");
+  app.add_option("--format", format, "mesh format: ply (default), obj or stl")->type_name("FMT");
+  app.add_flag("--drop-zero-normals", fit.dropZeroNormalPoints, "drop points whose normal is zero");
+  app.add_flag("--side-test", fit.sideTest, "reject offset points behind their nearest point's tangent plane");
+  app.add_flag_callback("--no-anchors", [&] { fit.signAnchors = false; }, "no sign anchors in empty space");
+  addInteger(app, "anchor-skip", fit.anchorSkipFinest, "sign anchors at levels 1 .. M - N (default 1)");
+  app.add_flag_callback("--no-medial", [&] { fit.medialConstraints = false; }, "drop invalid offset points, not moved");
+  app.add_flag("--offset-correction", fit.offsetCorrection, "add the offset-correction level (experimental)");
+  app.add_flag("--estimate-normals", o.estimateNormals, "estimate and orient normals first (PCA)");
+  addInteger(app, "normals-k", o.normals.k, "neighbours of the normal estimation (default 15)");
+  app.add_flag("--denoise", o.denoise, "bilateral point filter before fitting");
+  addNumber(app, "denoise-sigma-s", o.denoiseOptions.sigmaSpatial, "the filter's spatial width");
+  addNumber(app, "denoise-sigma-r", o.denoiseOptions.sigmaRange, "the filter's range width");
+  addNumber(app, "denoise-radius", o.denoiseOptions.radius, "the filter's neighbourhood radius");
+  addInteger(app, "denoise-iterations", o.denoiseOptions.iterations, "filter passes (default 1)");
+  app.add_flag("--separate", o.separate, "baseline: one field per surface (field.dpxf, field_offsetN.dpxf)");
+  addFraction(app, "min-component", o.selfCheck.minAreaFraction, "drop components below F of the mesh's area");
+  addFraction(app, "min-offset-component", o.selfCheck.minOffsetAreaFraction, "the same for offsets (0.001)");
+  if (parse(app, argc, argv)) return 0;
+  fit.offsets = parseNumberList(offsets, "offset");
   // A denoised cloud is fitted in approximation mode, s = 0.2 as the paper's Fig. 9, unless told otherwise.
-  fit.smoothing = args.num("smoothing", o.denoise ? 0.2 : 0.0);
-  fit.fitTolerance = args.num("fit-tol", 0.0);
-  fit.precision = parsePrecision(args.str("precision", "float").c_str());
-  fit.solver.relativeTolerance = args.num("tol", 0.0);
-  fit.solver.maxIterations = static_cast<int>(args.integer("max-iterations", fit.solver.maxIterations));
-  fit.dropZeroNormalPoints = args.flag("drop-zero-normals");
-  fit.sideTest = args.flag("side-test");
-  fit.signAnchors = !args.flag("no-anchors");
-  fit.medialConstraints = !args.flag("no-medial");
-  fit.offsetCorrection = args.flag("offset-correction");
-  fit.anchorSkipFinest = static_cast<int>(args.integer("anchor-skip", fit.anchorSkipFinest));
-  o.surface.cell = args.num("cell", 0.0);
-  o.surface.resolution = static_cast<int>(args.integer("resolution", 0));
-  const std::string format = meshFormatOption(args);
-  const bool strict = args.flag("strict");
-  o.separate = args.flag("separate");
-  o.selfCheck.minAreaFraction = fractionOption(args, "min-component", o.selfCheck.minAreaFraction);
-  o.selfCheck.minOffsetAreaFraction = fractionOption(args, "min-offset-component", o.selfCheck.minOffsetAreaFraction);
-  o.estimateNormals = args.flag("estimate-normals");
-  o.normals.k = static_cast<int>(args.integer("normals-k", o.normals.k));
-  o.denoiseOptions.sigmaSpatial = args.num("denoise-sigma-s", 0.0);
-  o.denoiseOptions.sigmaRange = args.num("denoise-sigma-r", 0.0);
-  o.denoiseOptions.radius = args.num("denoise-radius", 0.0);
-  o.denoiseOptions.iterations = static_cast<int>(args.integer("denoise-iterations", 1));
-  const std::filesystem::path outDir = args.str("output", ".");
-  const Device device = openDevice(args.str("device", ""), progress);
-  args.finish(1);
-  if (args.positional().empty()) throw UsageError("fit needs an input cloud: duplexfit fit INPUT --offset D");
-  const std::string input = args.positional()[0];
+  if (o.denoise && app.count("--smoothing") == 0) fit.smoothing = 0.2;
+  fit.precision = device.precision;
+  if (format != "ply" && format != "obj" && format != "stl") throw UsageError("--format must be ply, obj or stl");
+  StderrProgress progress(quiet);
+  const Device dev = openDevice(device.spec, progress);
+  if (input.empty()) throw UsageError("fit needs an input cloud: duplexfit fit INPUT --offset D");
 
   StagedFolder staging(outDir);  // fails early, before any work, if the folder is unusable
-  const PipelineResult result = runPipeline(device, input, o, &progress);
+  const PipelineResult result = runPipeline(dev, input, o, &progress);
   writePipelineOutputs(result, staging, format);
 
   const FitReport& rep = result.report.fit;
@@ -69,18 +73,19 @@ int cmdFit(Args& args) {
             << result.report.read.points << " points, " << rep.levels << " levels, E0 " << rep.e0;
   for (std::size_t j = 0; j < rep.eDelta.size(); ++j) std::cout << ", E(" << rep.offsets[j] << ") " << rep.eDelta[j];
   std::cout << ", " << timer.seconds() << " s\n";
+  const std::filesystem::path dir = outDir;
   const std::vector<std::string> meshNames = pipelineMeshNames(result, format);
   for (std::size_t i = 0; i < meshNames.size(); ++i) {
     const MeshTopology& t = result.surfaces[i].topology;
-    std::cout << "  " << (outDir / meshNames[i]).string() << (o.separate && i > 0 ? "  offset " : "  iso ")
+    std::cout << "  " << (dir / meshNames[i]).string() << (o.separate && i > 0 ? "  offset " : "  iso ")
               << result.surfaces[i].offset << ": " << t.faces << " triangles, " << t.components << " component(s), "
               << (t.watertight() && t.manifold() ? "watertight 2-manifold" : "NOT watertight/manifold") << "\n";
   }
   const SelfCheckReport& check = result.report.selfCheck;
   if (!check.ok()) std::cout << "  self-check: " << check.issues.size() << " component issue(s), listed in report.json\n";
   std::cout << " ";
-  for (const std::string& f : pipelineFieldNames(result)) std::cout << " " << (outDir / f).string() << ",";
-  std::cout << " " << (outDir / "report.json").string() << "\n";
+  for (const std::string& f : pipelineFieldNames(result)) std::cout << " " << (dir / f).string() << ",";
+  std::cout << " " << (dir / "report.json").string() << "\n";
   return strict && (!result.report.converged() || !check.ok()) ? kNumerical : 0;
 }
 

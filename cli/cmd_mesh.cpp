@@ -2,29 +2,35 @@
 #include <iostream>
 
 #include "commands.hpp"
+#include "options.hpp"
 #include "progress.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/pipeline.hpp"
 
 namespace duplexfit::cli {
 
-const std::vector<std::string> kMeshValued = {"iso", "output", "device", "precision", "cell", "resolution",
-                                              "min-component", "min-offset-component"};
-
-int cmdMesh(Args& args) {
-  StderrProgress progress(args.flag("quiet"));
-  const double iso = args.num("iso", 0.0);
+int cmdMesh(int argc, char** argv) {
+  CLI::App app("extract one level set of a saved field", "mesh");
+  DeviceOptions device;
+  bool quiet = false;
+  double iso = 0.0, minComponent = 0.0;
+  std::string input, out = "mesh.ply";
   SurfaceOptions surface;
-  surface.cell = args.num("cell", 0.0);
-  surface.resolution = static_cast<int>(args.integer("resolution", 0));
-  surface.precision = parsePrecision(args.str("precision", "float").c_str());
-  const double minComponent = fractionOption(args, "min-component", 0.0);
-  const std::string out = args.str("output", "mesh.ply");
-  const Device device = openDevice(args.str("device", ""), progress);
-  args.finish(1);
-  if (args.positional().empty()) throw UsageError("mesh needs a field file: duplexfit mesh FIELD --iso V -o OUT");
-  const ImplicitField field = ImplicitField::load(args.positional()[0]);
-  const MeshPipelineResult r = runMeshPipeline(device, field, iso, surface, minComponent, &progress);
+  app.add_option("FIELD", input, "a field file (.dpxf) written by duplexfit fit");
+  addNumber(app, "iso", iso, "the level (default 0)");
+  app.add_option("-o,--output", out, "output mesh: .ply, .obj or .stl (default mesh.ply)")->type_name("OUT");
+  addDeviceOptions(app, device);
+  addQuiet(app, quiet);
+  addNumber(app, "cell", surface.cell, "marching grid cell size");
+  addInteger(app, "resolution", surface.resolution, "marching grid cells along the longest side");
+  addFraction(app, "min-component", minComponent, "drop components below F of the mesh's area (default 0)");
+  if (parse(app, argc, argv)) return 0;
+  surface.precision = device.precision;
+  StderrProgress progress(quiet);
+  const Device dev = openDevice(device.spec, progress);
+  if (input.empty()) throw UsageError("mesh needs a field file: duplexfit mesh FIELD --iso V -o OUT");
+  const ImplicitField field = ImplicitField::load(input);
+  const MeshPipelineResult r = runMeshPipeline(dev, field, iso, surface, minComponent, &progress);
   writeMesh(out, r.mesh);
   const MeshTopology& t = r.topology;
   std::cout << out << ": iso " << iso << ", " << t.faces << " triangles, " << t.components << " component(s), "

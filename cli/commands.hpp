@@ -6,8 +6,10 @@
 
 namespace duplexfit::cli {
 
-int cmdFit(Args& args);
-int cmdMesh(Args& args);
+int cmdDevices(int argc, char** argv);  // cmd_devices.cpp (CLI11: argv[0] is the command's name)
+int cmdSolve(int argc, char** argv);    // cmd_solve.cpp
+int cmdFit(int argc, char** argv);      // cmd_fit.cpp
+int cmdMesh(int argc, char** argv);     // cmd_mesh.cpp
 int cmdMeasure(Args& args);     // cmd_measure.cpp
 int cmdCheck(Args& args);       // cmd_measure.cpp
 int cmdSection(Args& args);     // cmd_section.cpp
@@ -16,8 +18,6 @@ int cmdDenoise(Args& args);     // cmd_preprocess.cpp
 int cmdNormals(Args& args);     // cmd_preprocess.cpp
 
 /// Options that take a value, per command (everything else is a flag).
-extern const std::vector<std::string> kFitValued;
-extern const std::vector<std::string> kMeshValued;
 extern const std::vector<std::string> kMeasureValued;
 extern const std::vector<std::string> kCheckValued;
 extern const std::vector<std::string> kSectionValued;

@@ -1,27 +1,14 @@
-// The CLI's Interrupter: progress lines and fit events on stderr (nothing with --quiet), and a timer.
+// The CLI's Interrupter: progress lines and fit events on stderr (nothing with --quiet).
 #pragma once
 
-#include <chrono>
 #include <iostream>
 #include <string>
 
+#include "timer.hpp"
 #include "duplexfit/device.hpp"
 #include "duplexfit/interrupter.hpp"
 
 namespace duplexfit::cli {
-
-/// Seconds since construction (or the last restart()).
-class Timer {
- public:
-  Timer() : start_(std::chrono::steady_clock::now()) {}
-  void restart() { start_ = std::chrono::steady_clock::now(); }
-  double seconds() const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  }
-
- private:
-  std::chrono::steady_clock::time_point start_;
-};
 
 class StderrProgress : public Interrupter {
  public:
