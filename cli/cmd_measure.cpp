@@ -1,13 +1,13 @@
 // `duplexfit measure`: Metro distances between two meshes (forward, backward, symmetric Hausdorff), or the
 // accuracy of an offset mesh against its surface; `duplexfit check`: topology, orientation, genus and
 // self-intersections of one mesh. Results go to stdout as a table or JSON; progress to stderr.
-#include <chrono>
 #include <cstdio>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
 
 #include "commands.hpp"
+#include "timer.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/measure.hpp"
@@ -37,9 +37,6 @@ const char* const kMeasureHelp =
 )";
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 struct LoadedMesh {
   std::string path;
@@ -140,11 +137,11 @@ int measureOffsetCommand(Args& args, const std::string& offsetPath, const std::s
   const double delta = args.num("delta", 0.0);
   if (delta == 0.0) throw UsageError("measure --offset-of needs --delta D (the signed offset, non-zero)");
   args.finish(1);
-  const auto t0 = Clock::now();
+  const Timer t0;
   const LoadedMesh o = load(offsetPath, quiet);
   const LoadedMesh s = load(surfacePath, quiet);
   const OffsetReport r = measureOffset(o.mesh, s.mesh, delta, options);
-  const double seconds = since(t0);
+  const double seconds = t0.seconds();
   if (!quiet) std::cerr << "measured " << r.samples << " samples in " << num(seconds, 3) << " s\n";
   if (json) {
     JsonWriter w(std::cout);
@@ -209,11 +206,11 @@ int cmdMeasure(Args& args) {
   }
   if (pos.size() != 2) throw UsageError("usage: duplexfit measure A B [--samples N] [--seed S] [--json]");
   args.finish(2);
-  const auto t0 = Clock::now();
+  const Timer t0;
   const LoadedMesh a = load(pos[0], quiet);
   const LoadedMesh b = load(pos[1], quiet);
   const DistanceReport r = measureDistance(a.mesh, b.mesh, options);
-  const double seconds = since(t0);
+  const double seconds = t0.seconds();
   if (!quiet) {
     std::cerr << "measured " << r.forward.samples + r.backward.samples << " samples in " << num(seconds, 3)
               << " s\n";
@@ -256,10 +253,10 @@ int cmdCheck(Args& args) {
   const auto& pos = args.positional();
   if (pos.size() != 1) throw UsageError("usage: duplexfit check MESH [--json] [--strict]");
   args.finish(1);
-  const auto t0 = Clock::now();
+  const Timer t0;
   const LoadedMesh m = load(pos[0], true);
   const MeshCheck c = checkMesh(m.mesh, options);
-  const double seconds = since(t0);
+  const double seconds = t0.seconds();
   if (!quiet) std::cerr << "checked in " << num(seconds, 3) << " s\n";
   const MeshTopology& t = c.topology;
   if (json) {

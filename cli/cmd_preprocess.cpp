@@ -1,12 +1,12 @@
 // `duplexfit denoise`: the bilateral point filter (docs/method.md §9) of an oriented cloud; `duplexfit normals`:
 // outward unit normals for a cloud that has none. Both write a binary PLY with normals atomically (a failed
 // run leaves no output) and, with --json, a summary with the parameters used and the timings on stdout.
-#include <chrono>
 #include <cmath>
 #include <iostream>
 #include <sstream>
 
 #include "commands.hpp"
+#include "timer.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/preprocess.hpp"
@@ -42,9 +42,6 @@ const char* const kPreprocessHelp = R"(  denoise INPUT      bilateral point filt
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
 struct Common {
   bool quiet = false;
   bool json = false;
@@ -76,19 +73,19 @@ void positional(Args& args, Common& c, const char* command) {
 Device openDevice(const Common& c, double& buildSeconds) {
   const Device d = c.spec.empty() ? Device::openDefault() : Device::open(c.spec);
   d.requirePrecision(c.precision);
-  const auto t = Clock::now();
+  const Timer t;
   d.compileKernels(c.precision);
-  buildSeconds = since(t);
+  buildSeconds = t.seconds();
   return d;
 }
 
 /// Reads the input cloud, normals optional (each command decides what it needs).
 PointCloudFile readInput(const Common& c, double& seconds) {
-  const auto t = Clock::now();
+  const Timer t;
   PointReadOptions ro;
   ro.requireNormals = false;
   PointCloudFile file = readPointCloudWithReport(c.input, ro);
-  seconds = since(t);
+  seconds = t.seconds();
   return file;
 }
 
@@ -109,7 +106,7 @@ double length(Args& args, const char* key) {
 }  // namespace
 
 int cmdDenoise(Args& args) {
-  const auto start = Clock::now();
+  const Timer start;
   Common c = commonOptions(args);
   BilateralOptions o;
   o.sigmaSpatial = length(args, "sigma-s");
@@ -142,9 +139,9 @@ int cmdDenoise(Args& args) {
       ", radius " + std::to_string(rep.radius) + ", " + std::to_string(rep.meanNeighbors) + " neighbours a point, " +
       std::to_string(rep.seconds) + " s");
 
-  const auto t = Clock::now();
+  const Timer t;
   writePointCloud(c.output, out);
-  const double writeSeconds = since(t);
+  const double writeSeconds = t.seconds();
 
   if (c.json) {
     JsonWriter w(std::cout);
@@ -178,7 +175,7 @@ int cmdDenoise(Args& args) {
         .field("filter", rep.filterSeconds)
         .field("denoise", rep.seconds)
         .field("write", writeSeconds)
-        .field("total", since(start))
+        .field("total", start.seconds())
         .endObject()
         .endObject();
   } else if (!c.quiet) {
@@ -190,7 +187,7 @@ int cmdDenoise(Args& args) {
 }
 
 int cmdNormals(Args& args) {
-  const auto start = Clock::now();
+  const Timer start;
   Common c = commonOptions(args);
   NormalOptions o;
   o.k = positiveInt(args, "k", 15, 1000);
@@ -242,9 +239,9 @@ int cmdNormals(Args& args) {
     }
   }
 
-  const auto t = Clock::now();
+  const Timer t;
   writePointCloud(c.output, out);
-  const double writeSeconds = since(t);
+  const double writeSeconds = t.seconds();
 
   if (c.json) {
     JsonWriter w(std::cout);
@@ -279,7 +276,7 @@ int cmdNormals(Args& args) {
         .field("orient", rep.orientSeconds)
         .field("normals", rep.seconds)
         .field("write", writeSeconds)
-        .field("total", since(start))
+        .field("total", start.seconds())
         .endObject()
         .endObject();
   } else if (!c.quiet) {

@@ -1,7 +1,6 @@
 // `duplexfit slice`: a saved field in, the layers of a 3D print out: slices.cli (Common Layer Interface,
 // ASCII), slices.svg, slices.json and optional PNG masks. Outputs are staged in a temporary folder inside
 // the output folder and moved into place only when everything succeeded.
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -13,6 +12,7 @@
 #include <unistd.h>
 
 #include "commands.hpp"
+#include "timer.hpp"
 #include "duplexfit/atomic_file.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/field.hpp"
@@ -48,8 +48,6 @@ const char* const kSliceHelp = R"(  slice FIELD        cut a saved field into pr
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 std::string layerName(std::size_t i, const char* ext) {
   char buf[32];
@@ -60,7 +58,7 @@ std::string layerName(std::size_t i, const char* ext) {
 }  // namespace
 
 int cmdSlice(Args& args) {
-  const auto start = Clock::now();
+  const Timer start;
   const bool quiet = args.flag("quiet");
   const bool json = args.flag("json");
   auto log = [quiet](const std::string& s) {
@@ -125,7 +123,7 @@ int cmdSlice(Args& args) {
       ", grid " + std::to_string(used.grid) + ", heights " + std::to_string(used.start) + " to " +
       std::to_string(used.end));
 
-  auto t = Clock::now();
+  Timer t;
   const SliceResult result = slicer.run([&](const SliceProgress& p) {
     if (!quiet) {
       std::cerr << "  layer " << p.layer << "  height " << std::setprecision(6) << p.height << "  thickness "
@@ -134,14 +132,14 @@ int cmdSlice(Args& args) {
     }
     return true;
   });
-  const double sliceSeconds = since(t);
+  const double sliceSeconds = t.seconds();
   std::size_t touching = 0;
   for (const SliceLayer& l : result.layers) touching += l.touchesBoundary ? 1 : 0;
   if (touching > 0) {
     log("warning: in " + std::to_string(touching) + " layer(s) a level set reached the padded grid border; loops were closed there");
   }
 
-  t = Clock::now();
+  t.restart();
   writeCli(staging.path("slices.cli"), result, units);
   if (svgPerLayer) {
     const std::string dir = staging.path("svg", true);
@@ -163,7 +161,7 @@ int cmdSlice(Args& args) {
       writePng((fs::path(dir) / layerName(i, "png")).string(), img);
     }
   }
-  const double writeSeconds = since(t);
+  const double writeSeconds = t.seconds();
 
   // Summary statistics.
   double tMin = std::numeric_limits<double>::infinity(), tMax = 0.0, tSum = 0.0;
@@ -213,7 +211,7 @@ int cmdSlice(Args& args) {
   }
   w.endArray();
   w.key("seconds").beginObject().field("slice", sliceSeconds).field("write", writeSeconds);
-  w.field("total", since(start)).endObject();
+  w.field("total", start.seconds()).endObject();
   w.field("layers_per_second", sliceSeconds > 0 ? static_cast<double>(n) / sliceSeconds : 0.0);
   w.field("vertices_per_second", sliceSeconds > 0 ? static_cast<double>(result.vertices) / sliceSeconds : 0.0);
   w.endObject();
