@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "commands.hpp"
+#include "options.hpp"
 #include "timer.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/io.hpp"
@@ -15,8 +16,6 @@
 
 namespace duplexfit::cli {
 
-const std::vector<std::string> kMeasureValued = {"samples", "seed", "offset-of", "delta"};
-const std::vector<std::string> kCheckValued = {};
 const char* const kMeasureHelp =
     R"(  measure A B        Metro distance between two meshes: samples of A to B (forward), of B to A
                      (backward), max / mean / RMS and the symmetric Hausdorff distance, also relative
@@ -118,25 +117,25 @@ void header() {
             << std::setw(14) << "RMS" << std::setw(14) << "p99" << std::setw(12) << "samples" << "\n";
 }
 
-MeasureOptions measureOptions(Args& args) {
-  MeasureOptions o;
-  o.samplesPerFace = args.num("samples", 10.0);
+/// --samples and --seed, checked after parsing (checkMeasureOptions).
+void addMeasureOptions(CLI::App& app, MeasureOptions& o, long& seed) {
+  addNumber(app, "samples", o.samplesPerFace, "face samples per triangle on average, plus every vertex (default 10)");
+  addInteger(app, "seed", seed, "seed of the deterministic sampling (default 1)");
+}
+
+void checkMeasureOptions(MeasureOptions& o, long seed) {
   if (!(o.samplesPerFace > 0.0)) {
     throw UsageError("--samples must be a positive number of samples per triangle (got " + num(o.samplesPerFace) +
                      ")");
   }
   if (o.samplesPerFace > 1e6) throw UsageError("--samples must be at most 1e6");
-  const long seed = args.integer("seed", 1);
   if (seed < 0) throw UsageError("--seed must be a non-negative integer");
   o.seed = static_cast<std::uint64_t>(seed);
-  return o;
 }
 
-int measureOffsetCommand(Args& args, const std::string& offsetPath, const std::string& surfacePath,
+int measureOffsetCommand(double delta, const std::string& offsetPath, const std::string& surfacePath,
                          const MeasureOptions& options, bool json, bool quiet) {
-  const double delta = args.num("delta", 0.0);
   if (delta == 0.0) throw UsageError("measure --offset-of needs --delta D (the signed offset, non-zero)");
-  args.finish(1);
   const Timer t0;
   const LoadedMesh o = load(offsetPath, quiet);
   const LoadedMesh s = load(surfacePath, quiet);
@@ -194,18 +193,27 @@ int measureOffsetCommand(Args& args, const std::string& offsetPath, const std::s
 
 }  // namespace
 
-int cmdMeasure(Args& args) {
-  const bool json = args.flag("json");
-  const bool quiet = args.flag("quiet");
-  const MeasureOptions options = measureOptions(args);
-  const std::string surface = args.str("offset-of", "");
-  const auto& pos = args.positional();
+int cmdMeasure(int argc, char** argv) {
+  CLI::App app("Metro distance between two meshes, or the accuracy of an offset mesh", "measure");
+  bool json = false, quiet = false;
+  MeasureOptions options;
+  long seed = 1;
+  double delta = 0.0;
+  std::string surface;
+  std::vector<std::string> pos;
+  app.add_option("MESHES", pos, "A B, or the offset mesh O with --offset-of");
+  addMeasureOptions(app, options, seed);
+  app.add_option("--offset-of", surface, "measure O as the offset of this surface mesh")->type_name("S");
+  addNumber(app, "delta", delta, "the signed offset of --offset-of (positive = inward, as in fit)");
+  addJson(app, json);
+  addQuiet(app, quiet);
+  if (parse(app, argc, argv)) return 0;
+  checkMeasureOptions(options, seed);
   if (!surface.empty()) {
     if (pos.size() != 1) throw UsageError("usage: duplexfit measure OFFSET --offset-of SURFACE --delta D");
-    return measureOffsetCommand(args, pos[0], surface, options, json, quiet);
+    return measureOffsetCommand(delta, pos[0], surface, options, json, quiet);
   }
   if (pos.size() != 2) throw UsageError("usage: duplexfit measure A B [--samples N] [--seed S] [--json]");
-  args.finish(2);
   const Timer t0;
   const LoadedMesh a = load(pos[0], quiet);
   const LoadedMesh b = load(pos[1], quiet);
@@ -244,15 +252,20 @@ int cmdMeasure(Args& args) {
   return 0;
 }
 
-int cmdCheck(Args& args) {
-  const bool json = args.flag("json");
-  const bool strict = args.flag("strict");
-  const bool quiet = args.flag("quiet");
+int cmdCheck(int argc, char** argv) {
+  CLI::App app("closed, 2-manifold, oriented, outward, genus and self-intersections of a mesh", "check");
+  bool json = false, strict = false, quiet = false;
   CheckOptions options;
-  options.selfIntersections = !args.flag("no-intersections");
-  const auto& pos = args.positional();
+  std::vector<std::string> pos;
+  app.add_option("MESH", pos, "the mesh (PLY, OBJ or STL)");
+  addJson(app, json);
+  addQuiet(app, quiet);
+  app.add_flag("--strict", strict, "exit with status 4 unless the mesh is closed, manifold, oriented, outward and "
+                                   "free of self-intersections");
+  app.add_flag_callback("--no-intersections", [&] { options.selfIntersections = false; },
+                        "skip the self-intersection test");
+  if (parse(app, argc, argv)) return 0;
   if (pos.size() != 1) throw UsageError("usage: duplexfit check MESH [--json] [--strict]");
-  args.finish(1);
   const Timer t0;
   const LoadedMesh m = load(pos[0], true);
   const MeshCheck c = checkMesh(m.mesh, options);

@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include "commands.hpp"
+#include "options.hpp"
 #include "timer.hpp"
 #include "duplexfit/atomic_file.hpp"
 #include "duplexfit/error.hpp"
@@ -21,10 +22,6 @@
 #include "json.hpp"
 
 namespace duplexfit::cli {
-
-const std::vector<std::string> kSliceValued = {"cusp",  "min-layer", "max-layer", "grid",      "mode",      "axis",
-                                               "layer", "png-xy",    "device",    "precision", "units",     "output",
-                                               "offset-index", "refine-steps", "cusp-rule"};
 
 const char* const kSliceHelp = R"(  slice FIELD        cut a saved field into print layers: contours of {f >= 0} (or of the shell between
                      the surface and its offset) as closed, oriented, nested loops; adaptive layer
@@ -57,33 +54,47 @@ std::string layerName(std::size_t i, const char* ext) {
 
 }  // namespace
 
-int cmdSlice(Args& args) {
+int cmdSlice(int argc, char** argv) {
   const Timer start;
-  const bool quiet = args.flag("quiet");
-  const bool json = args.flag("json");
+  CLI::App app("cut a saved field into print layers", "slice");
+  bool quiet = false, json = false, svgPerLayer = false, svg = false;
+  DeviceOptions deviceOptions;
+  SliceOptions options;
+  std::string input, mode = "zero", rule = "geometric", axis = "z", output = ".";
+  // Numbers: NaN marks "not given".
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  double units = 1.0, pixel = 0.0, cusp = nan, minLayer = nan, maxLayer = nan, layer = nan, grid = nan;
+  app.add_option("FIELD", input, "a field file (.dpxf)");
+  app.add_option("-o,--output", output, "output folder (default: current folder)")->type_name("DIR");
+  addNumber(app, "cusp", cusp, "cusp height of the adaptive layers");
+  addNumber(app, "min-layer", minLayer, "thinnest adaptive layer");
+  addNumber(app, "max-layer", maxLayer, "thickest adaptive layer");
+  addNumber(app, "layer", layer, "uniform layer thickness instead of --cusp");
+  addNumber(app, "grid", grid, "contouring grid spacing");
+  app.add_option("--mode", mode, "zero (the solid, default) or shell");
+  app.add_option("--cusp-rule", rule, "the cusp-height rule (default geometric)");
+  app.add_option("--axis", axis, "build direction x, y or z (default z)");
+  addInteger(app, "offset-index", options.offsetIndex, "the offset of --mode shell (default 0)");
+  addInteger(app, "refine-steps", options.refineSteps, "contour refinement steps (0..64)");
+  addNumber(app, "units", units, "output units per input unit (default 1)");
+  addNumber(app, "png-xy", pixel, "PNG masks with this pixel size");
+  app.add_flag("--svg", svg, "slices.svg (always written; accepted for clarity)");
+  app.add_flag("--svg-per-layer", svgPerLayer, "one SVG per layer as well");
+  addDeviceOptions(app, deviceOptions);
+  addQuiet(app, quiet);
+  addJson(app, json);
+  if (parse(app, argc, argv)) return 0;
   auto log = [quiet](const std::string& s) {
     if (!quiet) std::cerr << s << std::endl;
   };
-  SliceOptions options;
-  options.mode = parseSliceMode(args.str("mode", "zero"));
-  options.rule = parseCuspRule(args.str("cusp-rule", "geometric"));
-  options.axis = parseAxis(args.str("axis", "z"));
-  options.offsetIndex = static_cast<int>(args.integer("offset-index", 0));
-  options.refineSteps = static_cast<int>(args.integer("refine-steps", options.refineSteps));
-  options.precision = parsePrecision(args.str("precision", "float").c_str());
-  const double units = args.num("units", 1.0);
-  const double pixel = args.num("png-xy", 0.0);
+  options.mode = parseSliceMode(mode);
+  options.rule = parseCuspRule(rule);
+  options.axis = parseAxis(axis);
+  options.precision = deviceOptions.precision;
   const bool pngGiven = pixel != 0.0;
-  const bool svgPerLayer = args.flag("svg-per-layer");
-  args.flag("svg");  // one slices.svg is always written; accepted for clarity
-  const fs::path outDir = args.str("output", ".");
-  const std::string deviceSpec = args.str("device", "");
-  // Numbers: NaN marks "not given".
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  const double cusp = args.num("cusp", nan), minLayer = args.num("min-layer", nan), maxLayer = args.num("max-layer", nan);
-  const double layer = args.num("layer", nan), grid = args.num("grid", nan);
-  args.finish(1);
-  if (args.positional().empty()) throw UsageError("slice needs a field file: duplexfit slice FIELD --cusp T -o DIR");
+  const fs::path outDir = output;
+  const std::string deviceSpec = deviceOptions.spec;
+  if (input.empty()) throw UsageError("slice needs a field file: duplexfit slice FIELD --cusp T -o DIR");
   if (std::isnan(layer) && std::isnan(cusp)) throw UsageError("slice needs --cusp T (adaptive) or --layer H (uniform)");
   if (!std::isnan(cusp) && !(cusp > 0.0)) throw UsageError("--cusp must be > 0 (got " + std::to_string(cusp) + ")");
   if (!std::isnan(layer) && !(layer > 0.0)) throw UsageError("--layer must be > 0 (got " + std::to_string(layer) + ")");
@@ -101,7 +112,6 @@ int cmdSlice(Args& args) {
   options.minLayer = std::isnan(minLayer) ? 0.0 : minLayer;
   options.maxLayer = std::isnan(maxLayer) ? 0.0 : maxLayer;
   options.grid = std::isnan(grid) ? 0.0 : grid;
-  const std::string input = args.positional()[0];
 
   const ImplicitField field = ImplicitField::load(input);
   const Device device = deviceSpec.empty() ? Device::openDefault() : Device::open(deviceSpec);

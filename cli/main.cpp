@@ -11,7 +11,6 @@
 namespace {
 
 using namespace duplexfit;
-using cli::Args;
 using cli::UsageError;
 using cli::kUsage;
 using cli::kDevice;
@@ -102,30 +101,12 @@ int main(int argc, char** argv) {
     if (cmd == "solve") return cli::cmdSolve(argc - 1, argv + 1);
     if (cmd == "fit") return cli::cmdFit(argc - 1, argv + 1);
     if (cmd == "mesh") return cli::cmdMesh(argc - 1, argv + 1);
-    if (cmd == "measure") {
-      Args args(argc, argv, 2, cli::kMeasureValued);
-      return cli::cmdMeasure(args);
-    }
-    if (cmd == "check") {
-      Args args(argc, argv, 2, cli::kCheckValued);
-      return cli::cmdCheck(args);
-    }
-    if (cmd == "section") {
-      Args args(argc, argv, 2, cli::kSectionValued);
-      return cli::cmdSection(args);
-    }
-    if (cmd == "slice") {
-      Args args(argc, argv, 2, cli::kSliceValued);
-      return cli::cmdSlice(args);
-    }
-    if (cmd == "denoise") {
-      Args args(argc, argv, 2, cli::kDenoiseValued);
-      return cli::cmdDenoise(args);
-    }
-    if (cmd == "normals") {
-      Args args(argc, argv, 2, cli::kNormalsValued);
-      return cli::cmdNormals(args);
-    }
+    if (cmd == "measure") return cli::cmdMeasure(argc - 1, argv + 1);
+    if (cmd == "check") return cli::cmdCheck(argc - 1, argv + 1);
+    if (cmd == "section") return cli::cmdSection(argc - 1, argv + 1);
+    if (cmd == "slice") return cli::cmdSlice(argc - 1, argv + 1);
+    if (cmd == "denoise") return cli::cmdDenoise(argc - 1, argv + 1);
+    if (cmd == "normals") return cli::cmdNormals(argc - 1, argv + 1);
     throw UsageError("unknown command '" + cmd + "' (try duplexfit --help)");
   } catch (const UsageError& e) {
     std::cerr << "duplexfit: " << e.what() << "\n";
