@@ -6,13 +6,14 @@
 #include <iostream>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
 #include "commands.hpp"
 #include "options.hpp"
 #include "timer.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/measure.hpp"
-#include "json.hpp"
 
 namespace duplexfit::cli {
 
@@ -68,36 +69,30 @@ std::string percent(double v, double of) {
   return s.str();
 }
 
-void vec(JsonWriter& w, const char* key, const Eigen::Vector3d& p) {
-  w.key(key).beginArray().value(p.x()).value(p.y()).value(p.z()).endArray();
+using Json = nlohmann::ordered_json;
+
+Json vec(const Eigen::Vector3d& p) { return Json::array({p.x(), p.y(), p.z()}); }
+
+Json meshJson(const LoadedMesh& m) {
+  return Json{{"file", m.path},
+              {"vertices", m.validation.vertices},
+              {"faces", m.validation.faces},
+              {"degenerate_faces", m.validation.degenerateFaces()}};
 }
 
-void meshJson(JsonWriter& w, const char* key, const LoadedMesh& m) {
-  w.key(key)
-      .beginObject()
-      .field("file", m.path)
-      .field("vertices", m.validation.vertices)
-      .field("faces", m.validation.faces)
-      .field("degenerate_faces", m.validation.degenerateFaces())
-      .endObject();
-}
-
-void statsJson(JsonWriter& w, const char* key, const SampleStats& s, double relativeTo = 0.0) {
-  w.key(key)
-      .beginObject()
-      .field("samples", s.samples)
-      .field("min", s.min)
-      .field("max", s.max)
-      .field("mean", s.mean)
-      .field("rms", s.rms)
-      .field("p99", s.p99);
+Json statsJson(const SampleStats& s, double relativeTo = 0.0) {
+  Json j{{"samples", s.samples}, {"min", s.min}, {"max", s.max}, {"mean", s.mean}, {"rms", s.rms}, {"p99", s.p99}};
   if (relativeTo > 0.0) {
-    w.field("max_rel", s.max / relativeTo).field("mean_rel", s.mean / relativeTo).field("rms_rel", s.rms / relativeTo);
+    j["max_rel"] = s.max / relativeTo;
+    j["mean_rel"] = s.mean / relativeTo;
+    j["rms_rel"] = s.rms / relativeTo;
   }
-  vec(w, "max_at", s.maxAt);
-  vec(w, "max_closest", s.maxClosest);
-  w.endObject();
+  j["max_at"] = vec(s.maxAt);
+  j["max_closest"] = vec(s.maxClosest);
+  return j;
 }
+
+void print(const Json& j) { std::cout << j.dump(2, ' ', false, Json::error_handler_t::replace) << "\n"; }
 
 std::string point(const Eigen::Vector3d& p) { return "(" + num(p.x()) + ", " + num(p.y()) + ", " + num(p.z()) + ")"; }
 
@@ -143,29 +138,32 @@ int measureOffsetCommand(double delta, const std::string& offsetPath, const std:
   const double seconds = t0.seconds();
   if (!quiet) std::cerr << "measured " << r.samples << " samples in " << num(seconds, 3) << " s\n";
   if (json) {
-    JsonWriter w(std::cout);
-    w.beginObject().field("mode", "offset");
-    meshJson(w, "offset", o);
-    meshJson(w, "surface", s);
-    w.field("delta", delta)
-        .field("samples_per_face", options.samplesPerFace)
-        .field("seed", options.seed)
-        .field("samples", r.samples);
-    statsJson(w, "distance", r.distance);
-    statsJson(w, "deviation", r.deviation);
-    statsJson(w, "relative_distance", r.relativeDistance);
-    statsJson(w, "relative_deviation", r.relativeDeviation);
-    w.field("wrong_side", r.wrongSide).field("wrong_side_share", r.wrongSideShare);
-    w.field("components", r.components.size()).field("off_offset_components", r.offOffsetComponents);
-    w.key("component_list").beginArray();
+    Json components = Json::array();
     for (std::size_t i = 0; i < r.components.size() && i < 50; ++i) {
       const OffsetReport::Component& c = r.components[i];
-      w.beginObject().field("faces", c.faces).field("mean_distance", c.meanDistance);
-      w.field("mean_deviation", c.meanDeviation).field("max_deviation", c.maxDeviation);
-      w.field("off_offset", c.offOffset).endObject();
+      components.push_back(Json{{"faces", c.faces},
+                                {"mean_distance", c.meanDistance},
+                                {"mean_deviation", c.meanDeviation},
+                                {"max_deviation", c.maxDeviation},
+                                {"off_offset", c.offOffset}});
     }
-    w.endArray().field("seconds", seconds);
-    w.endObject();
+    print(Json{{"mode", "offset"},
+               {"offset", meshJson(o)},
+               {"surface", meshJson(s)},
+               {"delta", delta},
+               {"samples_per_face", options.samplesPerFace},
+               {"seed", options.seed},
+               {"samples", r.samples},
+               {"distance", statsJson(r.distance)},
+               {"deviation", statsJson(r.deviation)},
+               {"relative_distance", statsJson(r.relativeDistance)},
+               {"relative_deviation", statsJson(r.relativeDeviation)},
+               {"wrong_side", r.wrongSide},
+               {"wrong_side_share", r.wrongSideShare},
+               {"components", r.components.size()},
+               {"off_offset_components", r.offOffsetComponents},
+               {"component_list", std::move(components)},
+               {"seconds", seconds}});
     return 0;
   }
   std::cout << "offset   " << o.path << " (" << o.validation.vertices << " vertices, " << o.validation.faces
@@ -225,15 +223,17 @@ int cmdMeasure(int argc, char** argv) {
   }
   const double diag = r.diagonalB;
   if (json) {
-    JsonWriter w(std::cout);
-    w.beginObject().field("mode", "distance");
-    meshJson(w, "a", a);
-    meshJson(w, "b", b);
-    w.field("samples_per_face", options.samplesPerFace).field("seed", options.seed).field("diagonal_b", diag);
-    statsJson(w, "forward", r.forward, diag);
-    statsJson(w, "backward", r.backward, diag);
-    w.field("hausdorff", r.hausdorff).field("hausdorff_rel", diag > 0.0 ? r.hausdorff / diag : 0.0);
-    w.field("seconds", seconds).endObject();
+    print(Json{{"mode", "distance"},
+               {"a", meshJson(a)},
+               {"b", meshJson(b)},
+               {"samples_per_face", options.samplesPerFace},
+               {"seed", options.seed},
+               {"diagonal_b", diag},
+               {"forward", statsJson(r.forward, diag)},
+               {"backward", statsJson(r.backward, diag)},
+               {"hausdorff", r.hausdorff},
+               {"hausdorff_rel", diag > 0.0 ? r.hausdorff / diag : 0.0},
+               {"seconds", seconds}});
     return 0;
   }
   std::cout << "A  " << a.path << " (" << a.validation.vertices << " vertices, " << a.validation.faces
@@ -273,45 +273,34 @@ int cmdCheck(int argc, char** argv) {
   if (!quiet) std::cerr << "checked in " << num(seconds, 3) << " s\n";
   const MeshTopology& t = c.topology;
   if (json) {
-    JsonWriter w(std::cout);
-    w.beginObject()
-        .field("file", m.path)
-        .field("vertices", t.vertices)
-        .field("faces", t.faces)
-        .field("edges", t.edges)
-        .field("valid", c.valid())
-        .field("watertight", c.watertight)
-        .field("manifold", c.manifold)
-        .field("oriented", c.oriented)
-        .field("outward", c.outward)
-        .field("signed_volume", c.signedVolume)
-        .field("area", c.area)
-        .field("components", t.components)
-        .field("euler_characteristic", t.eulerCharacteristic)
-        .key("genus");
-    if (c.genusKnown) {
-      w.value(c.genus);
-    } else {
-      w.value(std::numeric_limits<double>::quiet_NaN());  // null
-    }
-    w.field("boundary_edges", t.boundaryEdges)
-        .field("boundary_loops", c.boundaryLoops)
-        .field("non_manifold_edges", t.nonManifoldEdges)
-        .field("non_manifold_vertices", t.nonManifoldVertices)
-        .field("inconsistent_edges", t.inconsistentEdges)
-        .field("degenerate_faces", c.validation.degenerateFaces())
-        .field("repeated_index_faces", c.validation.repeatedIndexFaces)
-        .field("zero_area_faces", c.validation.zeroAreaFaces)
-        .field("self_intersections_checked", c.selfIntersectionsChecked);
-    w.key("self_intersections");
-    if (c.selfIntersectionsChecked) {
-      w.value(c.selfIntersections);
-    } else {
-      w.value(std::numeric_limits<double>::quiet_NaN());
-    }
-    w.key("intersecting_pairs").beginArray();
-    for (const auto& p : c.pairs) w.beginArray().value(p.first).value(p.second).endArray();
-    w.endArray().field("seconds", seconds).endObject();
+    Json pairs = Json::array();
+    for (const auto& p : c.pairs) pairs.push_back(Json::array({p.first, p.second}));
+    print(Json{{"file", m.path},
+               {"vertices", t.vertices},
+               {"faces", t.faces},
+               {"edges", t.edges},
+               {"valid", c.valid()},
+               {"watertight", c.watertight},
+               {"manifold", c.manifold},
+               {"oriented", c.oriented},
+               {"outward", c.outward},
+               {"signed_volume", c.signedVolume},
+               {"area", c.area},
+               {"components", t.components},
+               {"euler_characteristic", t.eulerCharacteristic},
+               {"genus", c.genusKnown ? Json(c.genus) : Json()},
+               {"boundary_edges", t.boundaryEdges},
+               {"boundary_loops", c.boundaryLoops},
+               {"non_manifold_edges", t.nonManifoldEdges},
+               {"non_manifold_vertices", t.nonManifoldVertices},
+               {"inconsistent_edges", t.inconsistentEdges},
+               {"degenerate_faces", c.validation.degenerateFaces()},
+               {"repeated_index_faces", c.validation.repeatedIndexFaces},
+               {"zero_area_faces", c.validation.zeroAreaFaces},
+               {"self_intersections_checked", c.selfIntersectionsChecked},
+               {"self_intersections", c.selfIntersectionsChecked ? Json(c.selfIntersections) : Json()},
+               {"intersecting_pairs", std::move(pairs)},
+               {"seconds", seconds}});
   } else {
     auto yes = [](bool b) { return b ? "yes" : "no"; };
     std::cout << "mesh                   " << m.path << "\n"

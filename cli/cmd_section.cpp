@@ -12,6 +12,8 @@
 
 #include <unistd.h>
 
+#include <nlohmann/json.hpp>
+
 #include "commands.hpp"
 #include "options.hpp"
 #include "timer.hpp"
@@ -20,7 +22,6 @@
 #include "duplexfit/image.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/section.hpp"
-#include "json.hpp"
 
 namespace duplexfit::cli {
 
@@ -197,30 +198,38 @@ int cmdSection(int argc, char** argv) {
   const double totalSeconds = start.seconds();
 
   if (json) {
-    JsonWriter w(std::cout);
-    w.beginObject().field("field", fieldPath).field("device", device.info().spec);
-    w.field("device_name", device.info().name).field("precision", precisionName(options.precision));
-    w.key("files").beginArray();
-    for (const std::string& f : files) w.value(f);
-    w.endArray();
-    w.key("levels").beginArray();
-    for (double l : results.front().levels) w.value(l);
-    w.endArray();
-    w.key("sections").beginArray();
+    using Json = nlohmann::ordered_json;
+    Json sections = Json::array();
     for (std::size_t i = 0; i < results.size(); ++i) {
       const SectionResult& r = results[i];
-      w.beginObject().field("file", files[i]).field("plane", r.plane.toString());
-      w.field("width", r.image.width).field("height", r.image.height);
-      w.field("pixel_size", r.pixelSize);
-      w.key("axes").beginArray().value(sectionAxisName(r.plane.rightAxis())).value(sectionAxisName(r.plane.upAxis())).endArray();
-      w.key("rectangle").beginArray().value(r.rectangle.min().x()).value(r.rectangle.min().y());
-      w.value(r.rectangle.max().x()).value(r.rectangle.max().y()).endArray();
-      w.field("value_min", r.minValue).field("value_max", r.maxValue).field("range", r.range);
-      if (!pointsPath.empty()) w.field("band", r.band).field("points_drawn", r.pointsDrawn);
-      w.field("seconds", r.seconds).endObject();
+      Json j{{"file", files[i]},
+             {"plane", r.plane.toString()},
+             {"width", r.image.width},
+             {"height", r.image.height},
+             {"pixel_size", r.pixelSize},
+             {"axes", Json::array({sectionAxisName(r.plane.rightAxis()), sectionAxisName(r.plane.upAxis())})},
+             {"rectangle", Json::array({r.rectangle.min().x(), r.rectangle.min().y(), r.rectangle.max().x(),
+                                        r.rectangle.max().y()})},
+             {"value_min", r.minValue},
+             {"value_max", r.maxValue},
+             {"range", r.range}};
+      if (!pointsPath.empty()) {
+        j["band"] = r.band;
+        j["points_drawn"] = r.pointsDrawn;
+      }
+      j["seconds"] = r.seconds;
+      sections.push_back(std::move(j));
     }
-    w.endArray();
-    w.field("setup_seconds", setupSeconds).field("total_seconds", totalSeconds).endObject();
+    const Json out{{"field", fieldPath},
+                   {"device", device.info().spec},
+                   {"device_name", device.info().name},
+                   {"precision", precisionName(options.precision)},
+                   {"files", files},
+                   {"levels", results.front().levels},
+                   {"sections", std::move(sections)},
+                   {"setup_seconds", setupSeconds},
+                   {"total_seconds", totalSeconds}};
+    std::cout << out.dump(2, ' ', false, Json::error_handler_t::replace) << "\n";
     std::cout << "\n";
   } else {
     for (std::size_t i = 0; i < results.size(); ++i) {

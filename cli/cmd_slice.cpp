@@ -11,6 +11,8 @@
 
 #include <unistd.h>
 
+#include <nlohmann/json.hpp>
+
 #include "commands.hpp"
 #include "options.hpp"
 #include "timer.hpp"
@@ -19,7 +21,6 @@
 #include "duplexfit/field.hpp"
 #include "duplexfit/image.hpp"
 #include "duplexfit/slice.hpp"
-#include "json.hpp"
 
 namespace duplexfit::cli {
 
@@ -186,54 +187,70 @@ int cmdSlice(int argc, char** argv) {
   const double tMean = n > 0 ? tSum / static_cast<double>(n) : 0.0;
   if (n == 0) tMin = 0.0;
 
-  std::ostringstream js;
-  JsonWriter w(js);
-  w.beginObject().field("input", input).field("device", device.info().spec).field("mode", sliceModeName(result.mode));
-  w.field("axis", std::string(1, "xyz"[result.axis])).field("adaptive", result.adaptive);
-  w.field("cusp_rule", cuspRuleName(result.rule));
-  w.field("cusp", result.cusp).field("min_layer", result.minLayer).field("max_layer", result.maxLayer);
-  w.field("uniform_layer", result.layer).field("grid", result.grid).field("units_mm", units);
-  w.key("levels").beginArray();
-  for (double l : result.levels) w.value(l);
-  w.endArray();
-  w.field("start", result.start).field("end", result.end).field("layer_count", n);
-  w.key("thickness").beginObject().field("min", tMin).field("mean", tMean).field("max", tMax).endObject();
-  w.field("loops", loops).field("vertices", result.vertices).field("samples", result.samples);
-  w.field("refine_evaluations", result.refineEvaluations).field("layers_touching_border", touching);
-  w.key("heights").beginArray();
-  for (const SliceLayer& l : result.layers) w.value(l.height);
-  w.endArray().key("areas").beginArray();
-  for (const SliceLayer& l : result.layers) w.value(l.area);
-  w.endArray().key("loops_per_layer").beginArray();
-  for (const SliceLayer& l : result.layers) w.value(l.loops.size());
-  w.endArray();
-  w.key("layers").beginArray();
+  using Json = nlohmann::ordered_json;
+  Json heights = Json::array(), areas = Json::array(), loopsPerLayer = Json::array(), layers = Json::array();
+  for (const SliceLayer& l : result.layers) {
+    heights.push_back(l.height);
+    areas.push_back(l.area);
+    loopsPerLayer.push_back(l.loops.size());
+  }
   for (std::size_t i = 0; i < n; ++i) {
     const SliceLayer& l = result.layers[i];
     std::size_t outer = 0;
     for (const SliceLoop& p : l.loops) outer += p.outer() ? 1 : 0;
-    w.beginObject().field("index", i + 1).field("height", l.height).field("thickness", l.thickness);
-    w.field("raw_thickness", l.rawThickness).field("area", l.area).field("loops", l.loops.size());
-    w.field("outer_loops", outer).field("holes", l.loops.size() - outer).field("vertices", l.vertexCount());
-    if (pngGiven) w.field("mask_area", maskArea[i]);
-    if (l.touchesBoundary) w.field("touches_border", true);
-    w.endObject();
+    Json j{{"index", i + 1},
+           {"height", l.height},
+           {"thickness", l.thickness},
+           {"raw_thickness", l.rawThickness},
+           {"area", l.area},
+           {"loops", l.loops.size()},
+           {"outer_loops", outer},
+           {"holes", l.loops.size() - outer},
+           {"vertices", l.vertexCount()}};
+    if (pngGiven) j["mask_area"] = maskArea[i];
+    if (l.touchesBoundary) j["touches_border"] = true;
+    layers.push_back(std::move(j));
   }
-  w.endArray();
-  w.key("seconds").beginObject().field("slice", sliceSeconds).field("write", writeSeconds);
-  w.field("total", start.seconds()).endObject();
-  w.field("layers_per_second", sliceSeconds > 0 ? static_cast<double>(n) / sliceSeconds : 0.0);
-  w.field("vertices_per_second", sliceSeconds > 0 ? static_cast<double>(result.vertices) / sliceSeconds : 0.0);
-  w.endObject();
+  const Json summary{
+      {"input", input},
+      {"device", device.info().spec},
+      {"mode", sliceModeName(result.mode)},
+      {"axis", std::string(1, "xyz"[result.axis])},
+      {"adaptive", result.adaptive},
+      {"cusp_rule", cuspRuleName(result.rule)},
+      {"cusp", result.cusp},
+      {"min_layer", result.minLayer},
+      {"max_layer", result.maxLayer},
+      {"uniform_layer", result.layer},
+      {"grid", result.grid},
+      {"units_mm", units},
+      {"levels", result.levels},
+      {"start", result.start},
+      {"end", result.end},
+      {"layer_count", n},
+      {"thickness", {{"min", tMin}, {"mean", tMean}, {"max", tMax}}},
+      {"loops", loops},
+      {"vertices", result.vertices},
+      {"samples", result.samples},
+      {"refine_evaluations", result.refineEvaluations},
+      {"layers_touching_border", touching},
+      {"heights", std::move(heights)},
+      {"areas", std::move(areas)},
+      {"loops_per_layer", std::move(loopsPerLayer)},
+      {"layers", std::move(layers)},
+      {"seconds", {{"slice", sliceSeconds}, {"write", writeSeconds}, {"total", start.seconds()}}},
+      {"layers_per_second", sliceSeconds > 0 ? static_cast<double>(n) / sliceSeconds : 0.0},
+      {"vertices_per_second", sliceSeconds > 0 ? static_cast<double>(result.vertices) / sliceSeconds : 0.0}};
+  const std::string js = summary.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
   {
     AtomicFile f(staging.path("slices.json"));
-    f.write(js.str());
+    f.write(js);
     f.commit();
   }
   staging.commit();
 
   if (json) {
-    std::cout << js.str();
+    std::cout << js;
   } else {
     std::cout << std::setprecision(5) << "slice " << input << ": " << n << " layers (" << sliceModeName(result.mode)
               << ", " << (result.adaptive ? "adaptive" : "uniform") << "), thickness " << tMin << " to " << tMax

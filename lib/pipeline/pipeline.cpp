@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <iomanip>
 #include <sstream>
 #include <utility>
@@ -115,7 +114,7 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
   report.secondsRead = readSeconds;
   const std::string& input = report.input;
   const std::string source = input.empty() ? std::string("points") : input;
-  FitOptions fitOptions = options.fit;
+  const FitOptions& fitOptions = options.fit;
   const Precision precision = fitOptions.precision;
 
   if (options.estimateNormals) {
