@@ -85,10 +85,15 @@ inline CLI::Option* addFraction(CLI::App& app, const std::string& name, double& 
 
 /// Parses the command's arguments (argv[0] is the command's name). Returns true when --help was printed
 /// (the command then exits 0). Unknown options, surplus arguments and missing values are UsageErrors
-/// worded as before CLI11 ("unknown option --x", "unexpected argument 'x'", "option --x needs a value");
+/// worded as before CLI11 ("unknown option --x", "unexpected argument 'x'", "option --x needs a value"),
+/// and an option given twice takes its last value, as before;
 /// CLI11's other errors keep its wording and point to the command's --help.
 inline bool parse(CLI::App& app, int argc, char** argv) {
   app.allow_extras();
+  // An option given twice: the last one counts (as before CLI11), instead of CLI11's error.
+  for (CLI::Option* option : app.get_options()) {
+    if (option->nonpositional()) option->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp&) {
