@@ -1,22 +1,22 @@
 // `duplexfit measure`: Metro distances between two meshes (forward, backward, symmetric Hausdorff), or the
 // accuracy of an offset mesh against its surface; `duplexfit check`: topology, orientation, genus and
 // self-intersections of one mesh. Results go to stdout as a table or JSON; progress to stderr.
-#include <chrono>
 #include <cstdio>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
 #include "commands.hpp"
+#include "options.hpp"
+#include "timer.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/measure.hpp"
-#include "json.hpp"
 
 namespace duplexfit::cli {
 
-const std::vector<std::string> kMeasureValued = {"samples", "seed", "offset-of", "delta"};
-const std::vector<std::string> kCheckValued = {};
 const char* const kMeasureHelp =
     R"(  measure A B        Metro distance between two meshes: samples of A to B (forward), of B to A
                      (backward), max / mean / RMS and the symmetric Hausdorff distance, also relative
@@ -37,9 +37,6 @@ const char* const kMeasureHelp =
 )";
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 struct LoadedMesh {
   std::string path;
@@ -72,36 +69,30 @@ std::string percent(double v, double of) {
   return s.str();
 }
 
-void vec(JsonWriter& w, const char* key, const Eigen::Vector3d& p) {
-  w.key(key).beginArray().value(p.x()).value(p.y()).value(p.z()).endArray();
+using Json = nlohmann::ordered_json;
+
+Json vec(const Eigen::Vector3d& p) { return Json::array({p.x(), p.y(), p.z()}); }
+
+Json meshJson(const LoadedMesh& m) {
+  return Json{{"file", m.path},
+              {"vertices", m.validation.vertices},
+              {"faces", m.validation.faces},
+              {"degenerate_faces", m.validation.degenerateFaces()}};
 }
 
-void meshJson(JsonWriter& w, const char* key, const LoadedMesh& m) {
-  w.key(key)
-      .beginObject()
-      .field("file", m.path)
-      .field("vertices", m.validation.vertices)
-      .field("faces", m.validation.faces)
-      .field("degenerate_faces", m.validation.degenerateFaces())
-      .endObject();
-}
-
-void statsJson(JsonWriter& w, const char* key, const SampleStats& s, double relativeTo = 0.0) {
-  w.key(key)
-      .beginObject()
-      .field("samples", s.samples)
-      .field("min", s.min)
-      .field("max", s.max)
-      .field("mean", s.mean)
-      .field("rms", s.rms)
-      .field("p99", s.p99);
+Json statsJson(const SampleStats& s, double relativeTo = 0.0) {
+  Json j{{"samples", s.samples}, {"min", s.min}, {"max", s.max}, {"mean", s.mean}, {"rms", s.rms}, {"p99", s.p99}};
   if (relativeTo > 0.0) {
-    w.field("max_rel", s.max / relativeTo).field("mean_rel", s.mean / relativeTo).field("rms_rel", s.rms / relativeTo);
+    j["max_rel"] = s.max / relativeTo;
+    j["mean_rel"] = s.mean / relativeTo;
+    j["rms_rel"] = s.rms / relativeTo;
   }
-  vec(w, "max_at", s.maxAt);
-  vec(w, "max_closest", s.maxClosest);
-  w.endObject();
+  j["max_at"] = vec(s.maxAt);
+  j["max_closest"] = vec(s.maxClosest);
+  return j;
 }
+
+void print(const Json& j) { std::cout << j.dump(2, ' ', false, Json::error_handler_t::replace) << "\n"; }
 
 std::string point(const Eigen::Vector3d& p) { return "(" + num(p.x()) + ", " + num(p.y()) + ", " + num(p.z()) + ")"; }
 
@@ -121,55 +112,58 @@ void header() {
             << std::setw(14) << "RMS" << std::setw(14) << "p99" << std::setw(12) << "samples" << "\n";
 }
 
-MeasureOptions measureOptions(Args& args) {
-  MeasureOptions o;
-  o.samplesPerFace = args.num("samples", 10.0);
+/// --samples and --seed, checked after parsing (checkMeasureOptions).
+void addMeasureOptions(CLI::App& app, MeasureOptions& o, long& seed) {
+  addNumber(app, "samples", o.samplesPerFace, "face samples per triangle on average, plus every vertex (default 10)");
+  addInteger(app, "seed", seed, "seed of the deterministic sampling (default 1)");
+}
+
+void checkMeasureOptions(MeasureOptions& o, long seed) {
   if (!(o.samplesPerFace > 0.0)) {
     throw UsageError("--samples must be a positive number of samples per triangle (got " + num(o.samplesPerFace) +
                      ")");
   }
   if (o.samplesPerFace > 1e6) throw UsageError("--samples must be at most 1e6");
-  const long seed = args.integer("seed", 1);
   if (seed < 0) throw UsageError("--seed must be a non-negative integer");
   o.seed = static_cast<std::uint64_t>(seed);
-  return o;
 }
 
-int measureOffsetCommand(Args& args, const std::string& offsetPath, const std::string& surfacePath,
+int measureOffsetCommand(double delta, const std::string& offsetPath, const std::string& surfacePath,
                          const MeasureOptions& options, bool json, bool quiet) {
-  const double delta = args.num("delta", 0.0);
   if (delta == 0.0) throw UsageError("measure --offset-of needs --delta D (the signed offset, non-zero)");
-  args.finish(1);
-  const auto t0 = Clock::now();
+  const Timer t0;
   const LoadedMesh o = load(offsetPath, quiet);
   const LoadedMesh s = load(surfacePath, quiet);
   const OffsetReport r = measureOffset(o.mesh, s.mesh, delta, options);
-  const double seconds = since(t0);
+  const double seconds = t0.seconds();
   if (!quiet) std::cerr << "measured " << r.samples << " samples in " << num(seconds, 3) << " s\n";
   if (json) {
-    JsonWriter w(std::cout);
-    w.beginObject().field("mode", "offset");
-    meshJson(w, "offset", o);
-    meshJson(w, "surface", s);
-    w.field("delta", delta)
-        .field("samples_per_face", options.samplesPerFace)
-        .field("seed", options.seed)
-        .field("samples", r.samples);
-    statsJson(w, "distance", r.distance);
-    statsJson(w, "deviation", r.deviation);
-    statsJson(w, "relative_distance", r.relativeDistance);
-    statsJson(w, "relative_deviation", r.relativeDeviation);
-    w.field("wrong_side", r.wrongSide).field("wrong_side_share", r.wrongSideShare);
-    w.field("components", r.components.size()).field("off_offset_components", r.offOffsetComponents);
-    w.key("component_list").beginArray();
+    Json components = Json::array();
     for (std::size_t i = 0; i < r.components.size() && i < 50; ++i) {
       const OffsetReport::Component& c = r.components[i];
-      w.beginObject().field("faces", c.faces).field("mean_distance", c.meanDistance);
-      w.field("mean_deviation", c.meanDeviation).field("max_deviation", c.maxDeviation);
-      w.field("off_offset", c.offOffset).endObject();
+      components.push_back(Json{{"faces", c.faces},
+                                {"mean_distance", c.meanDistance},
+                                {"mean_deviation", c.meanDeviation},
+                                {"max_deviation", c.maxDeviation},
+                                {"off_offset", c.offOffset}});
     }
-    w.endArray().field("seconds", seconds);
-    w.endObject();
+    print(Json{{"mode", "offset"},
+               {"offset", meshJson(o)},
+               {"surface", meshJson(s)},
+               {"delta", delta},
+               {"samples_per_face", options.samplesPerFace},
+               {"seed", options.seed},
+               {"samples", r.samples},
+               {"distance", statsJson(r.distance)},
+               {"deviation", statsJson(r.deviation)},
+               {"relative_distance", statsJson(r.relativeDistance)},
+               {"relative_deviation", statsJson(r.relativeDeviation)},
+               {"wrong_side", r.wrongSide},
+               {"wrong_side_share", r.wrongSideShare},
+               {"components", r.components.size()},
+               {"off_offset_components", r.offOffsetComponents},
+               {"component_list", std::move(components)},
+               {"seconds", seconds}});
     return 0;
   }
   std::cout << "offset   " << o.path << " (" << o.validation.vertices << " vertices, " << o.validation.faces
@@ -197,38 +191,49 @@ int measureOffsetCommand(Args& args, const std::string& offsetPath, const std::s
 
 }  // namespace
 
-int cmdMeasure(Args& args) {
-  const bool json = args.flag("json");
-  const bool quiet = args.flag("quiet");
-  const MeasureOptions options = measureOptions(args);
-  const std::string surface = args.str("offset-of", "");
-  const auto& pos = args.positional();
+int cmdMeasure(int argc, char** argv) {
+  CLI::App app("Metro distance between two meshes, or the accuracy of an offset mesh", "measure");
+  bool json = false, quiet = false;
+  MeasureOptions options;
+  long seed = 1;
+  double delta = 0.0;
+  std::string surface;
+  std::vector<std::string> pos;
+  app.add_option("MESHES", pos, "A B, or the offset mesh O with --offset-of");
+  addMeasureOptions(app, options, seed);
+  app.add_option("--offset-of", surface, "measure O as the offset of this surface mesh")->type_name("S");
+  addNumber(app, "delta", delta, "the signed offset of --offset-of (positive = inward, as in fit)");
+  addJson(app, json);
+  addQuiet(app, quiet);
+  if (parse(app, argc, argv)) return 0;
+  checkMeasureOptions(options, seed);
   if (!surface.empty()) {
     if (pos.size() != 1) throw UsageError("usage: duplexfit measure OFFSET --offset-of SURFACE --delta D");
-    return measureOffsetCommand(args, pos[0], surface, options, json, quiet);
+    return measureOffsetCommand(delta, pos[0], surface, options, json, quiet);
   }
   if (pos.size() != 2) throw UsageError("usage: duplexfit measure A B [--samples N] [--seed S] [--json]");
-  args.finish(2);
-  const auto t0 = Clock::now();
+  const Timer t0;
   const LoadedMesh a = load(pos[0], quiet);
   const LoadedMesh b = load(pos[1], quiet);
   const DistanceReport r = measureDistance(a.mesh, b.mesh, options);
-  const double seconds = since(t0);
+  const double seconds = t0.seconds();
   if (!quiet) {
     std::cerr << "measured " << r.forward.samples + r.backward.samples << " samples in " << num(seconds, 3)
               << " s\n";
   }
   const double diag = r.diagonalB;
   if (json) {
-    JsonWriter w(std::cout);
-    w.beginObject().field("mode", "distance");
-    meshJson(w, "a", a);
-    meshJson(w, "b", b);
-    w.field("samples_per_face", options.samplesPerFace).field("seed", options.seed).field("diagonal_b", diag);
-    statsJson(w, "forward", r.forward, diag);
-    statsJson(w, "backward", r.backward, diag);
-    w.field("hausdorff", r.hausdorff).field("hausdorff_rel", diag > 0.0 ? r.hausdorff / diag : 0.0);
-    w.field("seconds", seconds).endObject();
+    print(Json{{"mode", "distance"},
+               {"a", meshJson(a)},
+               {"b", meshJson(b)},
+               {"samples_per_face", options.samplesPerFace},
+               {"seed", options.seed},
+               {"diagonal_b", diag},
+               {"forward", statsJson(r.forward, diag)},
+               {"backward", statsJson(r.backward, diag)},
+               {"hausdorff", r.hausdorff},
+               {"hausdorff_rel", diag > 0.0 ? r.hausdorff / diag : 0.0},
+               {"seconds", seconds}});
     return 0;
   }
   std::cout << "A  " << a.path << " (" << a.validation.vertices << " vertices, " << a.validation.faces
@@ -247,61 +252,55 @@ int cmdMeasure(Args& args) {
   return 0;
 }
 
-int cmdCheck(Args& args) {
-  const bool json = args.flag("json");
-  const bool strict = args.flag("strict");
-  const bool quiet = args.flag("quiet");
+int cmdCheck(int argc, char** argv) {
+  CLI::App app("closed, 2-manifold, oriented, outward, genus and self-intersections of a mesh", "check");
+  bool json = false, strict = false, quiet = false;
   CheckOptions options;
-  options.selfIntersections = !args.flag("no-intersections");
-  const auto& pos = args.positional();
+  std::vector<std::string> pos;
+  app.add_option("MESH", pos, "the mesh (PLY, OBJ or STL)");
+  addJson(app, json);
+  addQuiet(app, quiet);
+  app.add_flag("--strict", strict, "exit with status 4 unless the mesh is closed, manifold, oriented, outward and "
+                                   "free of self-intersections");
+  app.add_flag_callback("--no-intersections", [&] { options.selfIntersections = false; },
+                        "skip the self-intersection test");
+  if (parse(app, argc, argv)) return 0;
   if (pos.size() != 1) throw UsageError("usage: duplexfit check MESH [--json] [--strict]");
-  args.finish(1);
-  const auto t0 = Clock::now();
+  const Timer t0;
   const LoadedMesh m = load(pos[0], true);
   const MeshCheck c = checkMesh(m.mesh, options);
-  const double seconds = since(t0);
+  const double seconds = t0.seconds();
   if (!quiet) std::cerr << "checked in " << num(seconds, 3) << " s\n";
   const MeshTopology& t = c.topology;
   if (json) {
-    JsonWriter w(std::cout);
-    w.beginObject()
-        .field("file", m.path)
-        .field("vertices", t.vertices)
-        .field("faces", t.faces)
-        .field("edges", t.edges)
-        .field("valid", c.valid())
-        .field("watertight", c.watertight)
-        .field("manifold", c.manifold)
-        .field("oriented", c.oriented)
-        .field("outward", c.outward)
-        .field("signed_volume", c.signedVolume)
-        .field("area", c.area)
-        .field("components", t.components)
-        .field("euler_characteristic", t.eulerCharacteristic)
-        .key("genus");
-    if (c.genusKnown) {
-      w.value(c.genus);
-    } else {
-      w.value(std::numeric_limits<double>::quiet_NaN());  // null
-    }
-    w.field("boundary_edges", t.boundaryEdges)
-        .field("boundary_loops", c.boundaryLoops)
-        .field("non_manifold_edges", t.nonManifoldEdges)
-        .field("non_manifold_vertices", t.nonManifoldVertices)
-        .field("inconsistent_edges", t.inconsistentEdges)
-        .field("degenerate_faces", c.validation.degenerateFaces())
-        .field("repeated_index_faces", c.validation.repeatedIndexFaces)
-        .field("zero_area_faces", c.validation.zeroAreaFaces)
-        .field("self_intersections_checked", c.selfIntersectionsChecked);
-    w.key("self_intersections");
-    if (c.selfIntersectionsChecked) {
-      w.value(c.selfIntersections);
-    } else {
-      w.value(std::numeric_limits<double>::quiet_NaN());
-    }
-    w.key("intersecting_pairs").beginArray();
-    for (const auto& p : c.pairs) w.beginArray().value(p.first).value(p.second).endArray();
-    w.endArray().field("seconds", seconds).endObject();
+    Json pairs = Json::array();
+    for (const auto& p : c.pairs) pairs.push_back(Json::array({p.first, p.second}));
+    print(Json{{"file", m.path},
+               {"vertices", t.vertices},
+               {"faces", t.faces},
+               {"edges", t.edges},
+               {"valid", c.valid()},
+               {"watertight", c.watertight},
+               {"manifold", c.manifold},
+               {"oriented", c.oriented},
+               {"outward", c.outward},
+               {"signed_volume", c.signedVolume},
+               {"area", c.area},
+               {"components", t.components},
+               {"euler_characteristic", t.eulerCharacteristic},
+               {"genus", c.genusKnown ? Json(c.genus) : Json()},
+               {"boundary_edges", t.boundaryEdges},
+               {"boundary_loops", c.boundaryLoops},
+               {"non_manifold_edges", t.nonManifoldEdges},
+               {"non_manifold_vertices", t.nonManifoldVertices},
+               {"inconsistent_edges", t.inconsistentEdges},
+               {"degenerate_faces", c.validation.degenerateFaces()},
+               {"repeated_index_faces", c.validation.repeatedIndexFaces},
+               {"zero_area_faces", c.validation.zeroAreaFaces},
+               {"self_intersections_checked", c.selfIntersectionsChecked},
+               {"self_intersections", c.selfIntersectionsChecked ? Json(c.selfIntersections) : Json()},
+               {"intersecting_pairs", std::move(pairs)},
+               {"seconds", seconds}});
   } else {
     auto yes = [](bool b) { return b ? "yes" : "no"; };
     std::cout << "mesh                   " << m.path << "\n"

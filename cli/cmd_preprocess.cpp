@@ -1,22 +1,20 @@
 // `duplexfit denoise`: the bilateral point filter (docs/method.md §9) of an oriented cloud; `duplexfit normals`:
 // outward unit normals for a cloud that has none. Both write a binary PLY with normals atomically (a failed
 // run leaves no output) and, with --json, a summary with the parameters used and the timings on stdout.
-#include <chrono>
 #include <cmath>
 #include <iostream>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
 #include "commands.hpp"
+#include "options.hpp"
+#include "timer.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/preprocess.hpp"
-#include "json.hpp"
 
 namespace duplexfit::cli {
-
-const std::vector<std::string> kDenoiseValued = {"output",     "sigma-s", "sigma-r",   "radius",
-                                                 "area-sigma", "iterations", "normal-k", "device", "precision"};
-const std::vector<std::string> kNormalsValued = {"output", "k", "graph-k", "device", "precision"};
 
 const char* const kPreprocessHelp = R"(  denoise INPUT      bilateral point filter of an oriented cloud (docs/method.md §9): each point moves to the
                      weighted mean of its projections onto its neighbours' tangent planes; normals kept
@@ -42,86 +40,87 @@ const char* const kPreprocessHelp = R"(  denoise INPUT      bilateral point filt
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+using Json = nlohmann::ordered_json;
 
 struct Common {
   bool quiet = false;
   bool json = false;
   std::string input, output;
-  Precision precision = Precision::Float;
-  std::string spec;
+  DeviceOptions device;
 };
 
-Common commonOptions(Args& args) {
-  Common c;
-  c.quiet = args.flag("quiet");
-  c.json = args.flag("json");
-  c.output = args.str("output", "");
-  c.spec = args.str("device", "");
-  c.precision = parsePrecision(args.str("precision", "float").c_str());
-  return c;
+/// INPUT, -o OUT and the shared groups (device + precision, quiet, json).
+void commonOptions(CLI::App& app, Common& c) {
+  app.add_option("INPUT", c.input, "input cloud (PLY or XYZ)");
+  app.add_option("-o,--output", c.output, "output cloud (binary PLY with normals; required)")->type_name("OUT");
+  addDeviceOptions(app, c.device);
+  addQuiet(app, c.quiet);
+  addJson(app, c.json, "summary with parameters and timings on stdout");
 }
 
-void positional(Args& args, Common& c, const char* command) {
-  args.finish(1);
-  if (args.positional().empty()) {
+void positional(const Common& c, const char* command) {
+  if (c.input.empty()) {
     throw UsageError(std::string(command) + " needs an input cloud: duplexfit " + command + " INPUT -o OUT");
   }
-  c.input = args.positional()[0];
   if (c.output.empty()) throw UsageError(std::string(command) + " needs an output file: -o OUT");
 }
 
 /// Opens the device and builds its kernels up front, so that the stage timings exclude the build.
 Device openDevice(const Common& c, double& buildSeconds) {
-  const Device d = c.spec.empty() ? Device::openDefault() : Device::open(c.spec);
-  d.requirePrecision(c.precision);
-  const auto t = Clock::now();
-  d.compileKernels(c.precision);
-  buildSeconds = since(t);
+  const Device d = c.device.spec.empty() ? Device::openDefault() : Device::open(c.device.spec);
+  d.requirePrecision(c.device.precision);
+  const Timer t;
+  d.compileKernels(c.device.precision);
+  buildSeconds = t.seconds();
   return d;
 }
 
 /// Reads the input cloud, normals optional (each command decides what it needs).
 PointCloudFile readInput(const Common& c, double& seconds) {
-  const auto t = Clock::now();
+  const Timer t;
   PointReadOptions ro;
   ro.requireNormals = false;
   PointCloudFile file = readPointCloudWithReport(c.input, ro);
-  seconds = since(t);
+  seconds = t.seconds();
   return file;
 }
 
-int positiveInt(Args& args, const char* key, long def, long max) {
-  const long v = args.integer(key, def);
-  if (v < 1 || v > max) {
-    throw UsageError(std::string("option --") + key + " must be between 1 and " + std::to_string(max));
-  }
-  return static_cast<int>(v);
+/// --name N, an integer in [1, max].
+void addPositiveInt(CLI::App& app, const std::string& name, int& target, int max, const std::string& help) {
+  addInteger(app, name, target, help)->check([name, max](const std::string& v) {
+    const double d = parseFinite(v, name);
+    if (d < 1 || d > max) throw UsageError("option --" + name + " must be between 1 and " + std::to_string(max));
+    return std::string();
+  });
 }
 
-double length(Args& args, const char* key) {
-  const double v = args.num(key, 0.0);
-  if (v < 0.0) throw UsageError(std::string("option --") + key + " must be positive");
-  return v;
+/// --name L, a length ≥ 0 (0: the rule's default).
+void addLength(CLI::App& app, const std::string& name, double& target, const std::string& help) {
+  addNumber(app, name, target, help)->check([name](const std::string& v) {
+    if (parseFinite(v, name) < 0.0) throw UsageError("option --" + name + " must be positive");
+    return std::string();
+  });
 }
 
 }  // namespace
 
-int cmdDenoise(Args& args) {
-  const auto start = Clock::now();
-  Common c = commonOptions(args);
+int cmdDenoise(int argc, char** argv) {
+  const Timer start;
+  CLI::App app("bilateral point filter of an oriented cloud", "denoise");
+  Common c;
+  commonOptions(app, c);
   BilateralOptions o;
-  o.sigmaSpatial = length(args, "sigma-s");
-  o.sigmaRange = length(args, "sigma-r");
-  o.radius = length(args, "radius");
-  o.areaSigma = length(args, "area-sigma");
-  o.iterations = positiveInt(args, "iterations", 1, 1000);
-  o.symmetricRange = args.flag("symmetric-range");
-  o.reestimateNormals = args.flag("reestimate-normals");
-  o.normalK = positiveInt(args, "normal-k", 15, 1000);
-  o.precision = c.precision;
-  positional(args, c, "denoise");
+  addLength(app, "sigma-s", o.sigmaSpatial, "spatial width sigma_psi (default 4 R_ave)");
+  addLength(app, "sigma-r", o.sigmaRange, "range width sigma_zeta on the normal offset (default 4 R_ave)");
+  addLength(app, "radius", o.radius, "neighbourhood radius (default 2 sigma_psi)");
+  addLength(app, "area-sigma", o.areaSigma, "sigma of the area weights (default sigma_M)");
+  addPositiveInt(app, "iterations", o.iterations, 1000, "passes, each from the previous output (default 1)");
+  app.add_flag("--symmetric-range", o.symmetricRange, "range weight exp(-t^2/(2 sigma_zeta^2))");
+  app.add_flag("--reestimate-normals", o.reestimateNormals, "PCA normals of the filtered points");
+  addPositiveInt(app, "normal-k", o.normalK, 1000, "neighbours of --reestimate-normals (default 15)");
+  if (parse(app, argc, argv)) return 0;
+  o.precision = c.device.precision;
+  positional(c, "denoise");
   auto log = [&](const std::string& s) {
     if (!c.quiet) std::cerr << s << std::endl;
   };
@@ -142,45 +141,41 @@ int cmdDenoise(Args& args) {
       ", radius " + std::to_string(rep.radius) + ", " + std::to_string(rep.meanNeighbors) + " neighbours a point, " +
       std::to_string(rep.seconds) + " s");
 
-  const auto t = Clock::now();
+  const Timer t;
   writePointCloud(c.output, out);
-  const double writeSeconds = since(t);
+  const double writeSeconds = t.seconds();
 
   if (c.json) {
-    JsonWriter w(std::cout);
-    w.beginObject()
-        .field("command", "denoise")
-        .field("input", c.input)
-        .field("output", c.output)
-        .field("points", rep.points)
-        .field("device", rep.device)
-        .field("device_name", device.info().name)
-        .field("precision", precisionName(rep.precision))
-        .field("sigma_spatial", rep.sigmaSpatial)
-        .field("sigma_range", rep.sigmaRange)
-        .field("radius", rep.radius)
-        .field("area_sigma", rep.areaSigma)
-        .field("levels", rep.levels)
-        .field("r_ave", rep.rAve)
-        .field("iterations", rep.iterations)
-        .field("symmetric_range", rep.symmetricRange)
-        .field("normals_reestimated", rep.normalsReestimated)
-        .field("mean_neighbors", rep.meanNeighbors)
-        .field("isolated", rep.isolated)
-        .field("moved", rep.moved)
-        .field("max_displacement", rep.maxDisplacement)
-        .field("mean_displacement", rep.meanDisplacement)
-        .key("seconds")
-        .beginObject()
-        .field("kernel_build", buildSeconds)
-        .field("read", readSeconds)
-        .field("neighbors", rep.neighborSeconds)
-        .field("filter", rep.filterSeconds)
-        .field("denoise", rep.seconds)
-        .field("write", writeSeconds)
-        .field("total", since(start))
-        .endObject()
-        .endObject();
+    const Json summary{{"command", "denoise"},
+                       {"input", c.input},
+                       {"output", c.output},
+                       {"points", rep.points},
+                       {"device", rep.device},
+                       {"device_name", device.info().name},
+                       {"precision", precisionName(rep.precision)},
+                       {"sigma_spatial", rep.sigmaSpatial},
+                       {"sigma_range", rep.sigmaRange},
+                       {"radius", rep.radius},
+                       {"area_sigma", rep.areaSigma},
+                       {"levels", rep.levels},
+                       {"r_ave", rep.rAve},
+                       {"iterations", rep.iterations},
+                       {"symmetric_range", rep.symmetricRange},
+                       {"normals_reestimated", rep.normalsReestimated},
+                       {"mean_neighbors", rep.meanNeighbors},
+                       {"isolated", rep.isolated},
+                       {"moved", rep.moved},
+                       {"max_displacement", rep.maxDisplacement},
+                       {"mean_displacement", rep.meanDisplacement},
+                       {"seconds",
+                        {{"kernel_build", buildSeconds},
+                         {"read", readSeconds},
+                         {"neighbors", rep.neighborSeconds},
+                         {"filter", rep.filterSeconds},
+                         {"denoise", rep.seconds},
+                         {"write", writeSeconds},
+                         {"total", start.seconds()}}}};
+    std::cout << summary.dump(2, ' ', false, Json::error_handler_t::replace) << "\n";
   } else if (!c.quiet) {
     std::cout << "denoised " << rep.points << " points on " << rep.device << " (" << precisionName(rep.precision)
               << "): " << rep.moved << " moved, max " << rep.maxDisplacement << ", mean " << rep.meanDisplacement
@@ -189,17 +184,22 @@ int cmdDenoise(Args& args) {
   return 0;
 }
 
-int cmdNormals(Args& args) {
-  const auto start = Clock::now();
-  Common c = commonOptions(args);
+int cmdNormals(int argc, char** argv) {
+  const Timer start;
+  CLI::App app("estimate outward unit normals of a cloud", "normals");
+  Common c;
+  commonOptions(app, c);
   NormalOptions o;
-  o.k = positiveInt(args, "k", 15, 1000);
-  o.graphK = static_cast<int>(args.integer("graph-k", 0));
+  bool keep = false;
+  addPositiveInt(app, "k", o.k, 1000, "neighbours of each point's PCA (default 15)");
+  addInteger(app, "graph-k", o.graphK, "neighbours per point of the orientation graph (default K)");
+  app.add_flag_callback("--allow-unoriented", [&] { o.requireOutward = false; },
+                        "flat or open clouds get consistent normals without an outward side");
+  app.add_flag("--keep-existing", keep, "when INPUT has normals, write them unchanged");
+  if (parse(app, argc, argv)) return 0;
   if (o.graphK < 0 || o.graphK > 1000) throw UsageError("option --graph-k must be between 1 and 1000");
-  o.requireOutward = !args.flag("allow-unoriented");
-  o.precision = c.precision;
-  const bool keep = args.flag("keep-existing");
-  positional(args, c, "normals");
+  o.precision = c.device.precision;
+  positional(c, "normals");
   auto log = [&](const std::string& s) {
     if (!c.quiet) std::cerr << s << std::endl;
   };
@@ -242,46 +242,37 @@ int cmdNormals(Args& args) {
     }
   }
 
-  const auto t = Clock::now();
+  const Timer t;
   writePointCloud(c.output, out);
-  const double writeSeconds = since(t);
+  const double writeSeconds = t.seconds();
 
   if (c.json) {
-    JsonWriter w(std::cout);
-    w.beginObject()
-        .field("command", "normals")
-        .field("input", c.input)
-        .field("output", c.output)
-        .field("points", out.size())
-        .field("input_had_normals", file.report.normals)
-        .field("kept_existing", kept)
-        .field("device", device.info().spec)
-        .field("device_name", device.info().name)
-        .field("precision", precisionName(c.precision))
-        .field("k", rep.k)
-        .field("graph_k", rep.graphK)
-        .field("duplicates", rep.duplicates)
-        .field("components", rep.components)
-        .field("ambiguous_components", rep.ambiguousComponents)
-        .field("flipped_components", rep.flippedComponents)
-        .field("nested_components", rep.nestedComponents)
-        .field("flipped", rep.flipped)
-        .field("degenerate", rep.degenerate)
-        .field("non_planar", rep.nonPlanar)
-        .field("min_volume_ratio", rep.minVolumeRatio);
-    if (agreeing >= 0.0) w.field("agree_with_input_normals", agreeing);
-    w.key("seconds")
-        .beginObject()
-        .field("kernel_build", buildSeconds)
-        .field("read", readSeconds)
-        .field("neighbors", rep.neighborSeconds)
-        .field("pca", rep.pcaSeconds)
-        .field("orient", rep.orientSeconds)
-        .field("normals", rep.seconds)
-        .field("write", writeSeconds)
-        .field("total", since(start))
-        .endObject()
-        .endObject();
+    Json summary{{"command", "normals"},
+                 {"input", c.input},
+                 {"output", c.output},
+                 {"points", out.size()},
+                 {"input_had_normals", file.report.normals},
+                 {"kept_existing", kept},
+                 {"device", device.info().spec},
+                 {"device_name", device.info().name},
+                 {"precision", precisionName(c.device.precision)},
+                 {"k", rep.k},
+                 {"graph_k", rep.graphK},
+                 {"duplicates", rep.duplicates},
+                 {"components", rep.components},
+                 {"ambiguous_components", rep.ambiguousComponents},
+                 {"flipped_components", rep.flippedComponents},
+                 {"nested_components", rep.nestedComponents},
+                 {"flipped", rep.flipped},
+                 {"degenerate", rep.degenerate},
+                 {"non_planar", rep.nonPlanar},
+                 {"min_volume_ratio", rep.minVolumeRatio}};
+    if (agreeing >= 0.0) summary["agree_with_input_normals"] = agreeing;
+    summary["seconds"] = Json{{"kernel_build", buildSeconds}, {"read", readSeconds},
+                              {"neighbors", rep.neighborSeconds}, {"pca", rep.pcaSeconds},
+                              {"orient", rep.orientSeconds},     {"normals", rep.seconds},
+                              {"write", writeSeconds},           {"total", start.seconds()}};
+    std::cout << summary.dump(2, ' ', false, Json::error_handler_t::replace) << "\n";
   } else if (!c.quiet) {
     std::cout << (kept ? "kept the normals of " : "estimated normals of ") << out.size() << " points";
     if (!kept) std::cout << " (" << rep.components << " component(s), " << rep.seconds << " s)";

@@ -2,7 +2,6 @@
 // the 0-level and offset contours). Every image is written under a temporary name first and renamed
 // into place only when all of them are done, so a failed run leaves no partial output.
 #include <cctype>
-#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
@@ -13,18 +12,18 @@
 
 #include <unistd.h>
 
+#include <nlohmann/json.hpp>
+
 #include "commands.hpp"
+#include "options.hpp"
+#include "timer.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/field.hpp"
 #include "duplexfit/image.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/section.hpp"
-#include "json.hpp"
 
 namespace duplexfit::cli {
-
-const std::vector<std::string> kSectionValued = {"plane", "size", "range", "gamma", "points", "band",
-                                                 "device", "precision", "rect", "output"};
 
 const char* const kSectionHelp =
     R"(  section FIELD      picture of f on an axis-aligned plane: blue outside (f < 0), white at 0, red inside,
@@ -89,26 +88,34 @@ class PendingFiles {
 
 }  // namespace
 
-int cmdSection(Args& args) {
-  const auto start = std::chrono::steady_clock::now();
-  const bool quiet = args.flag("quiet");
-  const bool json = args.flag("json");
+int cmdSection(int argc, char** argv) {
+  const Timer start;
+  CLI::App app("picture of f on an axis-aligned plane", "section");
+  bool quiet = false, json = false;
+  DeviceOptions deviceOptions;
+  SectionOptions options;
+  std::string fieldPath, planeText, pointsPath, rectText, output;
+  app.add_option("FIELD", fieldPath, "a field file (.dpxf)");
+  app.add_option("-o,--output", output, "OUT.png, or a folder for the three axis planes")->type_name("OUT");
+  app.add_option("--plane", planeText, "x=C, y=C or z=C (default: the three planes through the centre)");
+  addInteger(app, "size", options.size, "pixels of the longer side (default 1024)");
+  addNumber(app, "range", options.range, "|f| of full colour (default: from the field)");
+  addNumber(app, "gamma", options.gamma, "colour gamma, in (0, 10]");
+  app.add_option("--points", pointsPath, "overlay the cloud's points near the plane")->type_name("CLOUD");
+  addNumber(app, "band", options.band, "distance from the plane of the points drawn (needs --points)");
+  app.add_option("--rect", rectText, "U0,V0,U1,V1: the rectangle of the plane drawn");
+  addDeviceOptions(app, deviceOptions);
+  addQuiet(app, quiet);
+  addJson(app, json);
+  if (parse(app, argc, argv)) return 0;
   auto log = [quiet](const std::string& s) {
     if (!quiet) std::cerr << s << std::endl;
   };
-  const std::string planeText = args.str("plane", "");
-  SectionOptions options;
-  options.size = static_cast<int>(args.integer("size", options.size));
-  options.range = args.num("range", 0.0);
   if (options.range < 0.0) throw UsageError("option --range must be positive");
-  options.gamma = args.num("gamma", options.gamma);
   if (!(options.gamma > 0.0 && options.gamma <= 10.0)) throw UsageError("option --gamma must be in (0, 10]");
-  const std::string pointsPath = args.str("points", "");
-  options.band = args.num("band", 0.0);
   if (options.band < 0.0) throw UsageError("option --band must be positive");
   if (options.band > 0.0 && pointsPath.empty()) throw UsageError("option --band needs --points CLOUD");
-  options.precision = parsePrecision(args.str("precision", "float").c_str());
-  const std::string rectText = args.str("rect", "");
+  options.precision = deviceOptions.precision;
   if (!rectText.empty()) {
     const std::vector<double> r = parseNumberList(rectText, "rect");
     if (r.size() != 4 || !(r[2] > r[0]) || !(r[3] > r[1])) {
@@ -116,13 +123,10 @@ int cmdSection(Args& args) {
     }
     options.rectangle = Eigen::AlignedBox2d(Eigen::Vector2d(r[0], r[1]), Eigen::Vector2d(r[2], r[3]));
   }
-  const std::string output = args.str("output", "");
-  const std::string deviceSpec = args.str("device", "");
-  args.finish(1);
-  if (args.positional().empty()) throw UsageError("section needs a field file: duplexfit section FIELD -o OUT.png");
+  const std::string deviceSpec = deviceOptions.spec;
+  if (fieldPath.empty()) throw UsageError("section needs a field file: duplexfit section FIELD -o OUT.png");
   if (output.empty()) throw UsageError("section needs an output: -o OUT.png (or -o FOLDER)");
   if (options.size < 16 || options.size > 16384) throw UsageError("option --size must be between 16 and 16384");
-  const std::string fieldPath = args.positional()[0];
 
   std::vector<SectionPlane> planes;
   if (!planeText.empty()) planes.push_back(SectionPlane::parse(planeText));
@@ -167,21 +171,21 @@ int cmdSection(Args& args) {
   log("device: " + device.description());
   log("field " + fieldPath + ": " + std::to_string(field.levels().size()) + " levels, " +
       std::to_string(field.centreCount()) + " centres, " + std::to_string(field.offsets().size()) + " offset(s)");
-  auto t = std::chrono::steady_clock::now();
+  Timer t;
   const FieldEvaluator evaluator(device, field, options.precision);
-  const double setupSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+  const double setupSeconds = t.seconds();
 
   PendingFiles pending;
   std::vector<SectionResult> results;
   for (std::size_t i = 0; i < planes.size(); ++i) {
     SectionResult r = renderSection(evaluator, field, planes[i], options);
-    t = std::chrono::steady_clock::now();
+    t.restart();
     try {
       writePng(pending.add(files[i]), r.image);
     } catch (const IoError& e) {
       throw IoError(files[i] + ": cannot write the image (" + e.what() + ")");
     }
-    const double writeSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+    const double writeSeconds = t.seconds();
     std::ostringstream line;
     line << "section " << planes[i].toString() << ": " << r.image.width << "x" << r.image.height << " px, "
          << r.seconds << " s (+ " << writeSeconds << " s PNG)";
@@ -191,33 +195,41 @@ int cmdSection(Args& args) {
     results.push_back(std::move(r));
   }
   pending.commit();
-  const double totalSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double totalSeconds = start.seconds();
 
   if (json) {
-    JsonWriter w(std::cout);
-    w.beginObject().field("field", fieldPath).field("device", device.info().spec);
-    w.field("device_name", device.info().name).field("precision", precisionName(options.precision));
-    w.key("files").beginArray();
-    for (const std::string& f : files) w.value(f);
-    w.endArray();
-    w.key("levels").beginArray();
-    for (double l : results.front().levels) w.value(l);
-    w.endArray();
-    w.key("sections").beginArray();
+    using Json = nlohmann::ordered_json;
+    Json sections = Json::array();
     for (std::size_t i = 0; i < results.size(); ++i) {
       const SectionResult& r = results[i];
-      w.beginObject().field("file", files[i]).field("plane", r.plane.toString());
-      w.field("width", r.image.width).field("height", r.image.height);
-      w.field("pixel_size", r.pixelSize);
-      w.key("axes").beginArray().value(sectionAxisName(r.plane.rightAxis())).value(sectionAxisName(r.plane.upAxis())).endArray();
-      w.key("rectangle").beginArray().value(r.rectangle.min().x()).value(r.rectangle.min().y());
-      w.value(r.rectangle.max().x()).value(r.rectangle.max().y()).endArray();
-      w.field("value_min", r.minValue).field("value_max", r.maxValue).field("range", r.range);
-      if (!pointsPath.empty()) w.field("band", r.band).field("points_drawn", r.pointsDrawn);
-      w.field("seconds", r.seconds).endObject();
+      Json j{{"file", files[i]},
+             {"plane", r.plane.toString()},
+             {"width", r.image.width},
+             {"height", r.image.height},
+             {"pixel_size", r.pixelSize},
+             {"axes", Json::array({sectionAxisName(r.plane.rightAxis()), sectionAxisName(r.plane.upAxis())})},
+             {"rectangle", Json::array({r.rectangle.min().x(), r.rectangle.min().y(), r.rectangle.max().x(),
+                                        r.rectangle.max().y()})},
+             {"value_min", r.minValue},
+             {"value_max", r.maxValue},
+             {"range", r.range}};
+      if (!pointsPath.empty()) {
+        j["band"] = r.band;
+        j["points_drawn"] = r.pointsDrawn;
+      }
+      j["seconds"] = r.seconds;
+      sections.push_back(std::move(j));
     }
-    w.endArray();
-    w.field("setup_seconds", setupSeconds).field("total_seconds", totalSeconds).endObject();
+    const Json out{{"field", fieldPath},
+                   {"device", device.info().spec},
+                   {"device_name", device.info().name},
+                   {"precision", precisionName(options.precision)},
+                   {"files", files},
+                   {"levels", results.front().levels},
+                   {"sections", std::move(sections)},
+                   {"setup_seconds", setupSeconds},
+                   {"total_seconds", totalSeconds}};
+    std::cout << out.dump(2, ' ', false, Json::error_handler_t::replace) << "\n";
     std::cout << "\n";
   } else {
     for (std::size_t i = 0; i < results.size(); ++i) {

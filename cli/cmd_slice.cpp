@@ -1,7 +1,6 @@
 // `duplexfit slice`: a saved field in, the layers of a 3D print out: slices.cli (Common Layer Interface,
 // ASCII), slices.svg, slices.json and optional PNG masks. Outputs are staged in a temporary folder inside
 // the output folder and moved into place only when everything succeeded.
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -12,20 +11,18 @@
 
 #include <unistd.h>
 
+#include <nlohmann/json.hpp>
+
 #include "commands.hpp"
-#include "staging.hpp"
+#include "options.hpp"
+#include "timer.hpp"
 #include "duplexfit/atomic_file.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/field.hpp"
 #include "duplexfit/image.hpp"
 #include "duplexfit/slice.hpp"
-#include "json.hpp"
 
 namespace duplexfit::cli {
-
-const std::vector<std::string> kSliceValued = {"cusp",  "min-layer", "max-layer", "grid",      "mode",      "axis",
-                                               "layer", "png-xy",    "device",    "precision", "units",     "output",
-                                               "offset-index", "refine-steps", "cusp-rule"};
 
 const char* const kSliceHelp = R"(  slice FIELD        cut a saved field into print layers: contours of {f >= 0} (or of the shell between
                      the surface and its offset) as closed, oriented, nested loops; adaptive layer
@@ -49,8 +46,6 @@ const char* const kSliceHelp = R"(  slice FIELD        cut a saved field into pr
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 std::string layerName(std::size_t i, const char* ext) {
   char buf[32];
@@ -60,33 +55,47 @@ std::string layerName(std::size_t i, const char* ext) {
 
 }  // namespace
 
-int cmdSlice(Args& args) {
-  const auto start = Clock::now();
-  const bool quiet = args.flag("quiet");
-  const bool json = args.flag("json");
+int cmdSlice(int argc, char** argv) {
+  const Timer start;
+  CLI::App app("cut a saved field into print layers", "slice");
+  bool quiet = false, json = false, svgPerLayer = false, svg = false;
+  DeviceOptions deviceOptions;
+  SliceOptions options;
+  std::string input, mode = "zero", rule = "geometric", axis = "z", output = ".";
+  // Numbers: NaN marks "not given".
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  double units = 1.0, pixel = 0.0, cusp = nan, minLayer = nan, maxLayer = nan, layer = nan, grid = nan;
+  app.add_option("FIELD", input, "a field file (.dpxf)");
+  app.add_option("-o,--output", output, "output folder (default: current folder)")->type_name("DIR");
+  addNumber(app, "cusp", cusp, "cusp height of the adaptive layers");
+  addNumber(app, "min-layer", minLayer, "thinnest adaptive layer");
+  addNumber(app, "max-layer", maxLayer, "thickest adaptive layer");
+  addNumber(app, "layer", layer, "uniform layer thickness instead of --cusp");
+  addNumber(app, "grid", grid, "contouring grid spacing");
+  app.add_option("--mode", mode, "zero (the solid, default) or shell");
+  app.add_option("--cusp-rule", rule, "the cusp-height rule (default geometric)");
+  app.add_option("--axis", axis, "build direction x, y or z (default z)");
+  addInteger(app, "offset-index", options.offsetIndex, "the offset of --mode shell (default 0)");
+  addInteger(app, "refine-steps", options.refineSteps, "contour refinement steps (0..64)");
+  addNumber(app, "units", units, "output units per input unit (default 1)");
+  addNumber(app, "png-xy", pixel, "PNG masks with this pixel size");
+  app.add_flag("--svg", svg, "slices.svg (always written; accepted for clarity)");
+  app.add_flag("--svg-per-layer", svgPerLayer, "one SVG per layer as well");
+  addDeviceOptions(app, deviceOptions);
+  addQuiet(app, quiet);
+  addJson(app, json);
+  if (parse(app, argc, argv)) return 0;
   auto log = [quiet](const std::string& s) {
     if (!quiet) std::cerr << s << std::endl;
   };
-  SliceOptions options;
-  options.mode = parseSliceMode(args.str("mode", "zero"));
-  options.rule = parseCuspRule(args.str("cusp-rule", "geometric"));
-  options.axis = parseAxis(args.str("axis", "z"));
-  options.offsetIndex = static_cast<int>(args.integer("offset-index", 0));
-  options.refineSteps = static_cast<int>(args.integer("refine-steps", options.refineSteps));
-  options.precision = parsePrecision(args.str("precision", "float").c_str());
-  const double units = args.num("units", 1.0);
-  const double pixel = args.num("png-xy", 0.0);
+  options.mode = parseSliceMode(mode);
+  options.rule = parseCuspRule(rule);
+  options.axis = parseAxis(axis);
+  options.precision = deviceOptions.precision;
   const bool pngGiven = pixel != 0.0;
-  const bool svgPerLayer = args.flag("svg-per-layer");
-  args.flag("svg");  // one slices.svg is always written; accepted for clarity
-  const fs::path outDir = args.str("output", ".");
-  const std::string deviceSpec = args.str("device", "");
-  // Numbers: NaN marks "not given".
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  const double cusp = args.num("cusp", nan), minLayer = args.num("min-layer", nan), maxLayer = args.num("max-layer", nan);
-  const double layer = args.num("layer", nan), grid = args.num("grid", nan);
-  args.finish(1);
-  if (args.positional().empty()) throw UsageError("slice needs a field file: duplexfit slice FIELD --cusp T -o DIR");
+  const fs::path outDir = output;
+  const std::string deviceSpec = deviceOptions.spec;
+  if (input.empty()) throw UsageError("slice needs a field file: duplexfit slice FIELD --cusp T -o DIR");
   if (std::isnan(layer) && std::isnan(cusp)) throw UsageError("slice needs --cusp T (adaptive) or --layer H (uniform)");
   if (!std::isnan(cusp) && !(cusp > 0.0)) throw UsageError("--cusp must be > 0 (got " + std::to_string(cusp) + ")");
   if (!std::isnan(layer) && !(layer > 0.0)) throw UsageError("--layer must be > 0 (got " + std::to_string(layer) + ")");
@@ -104,7 +113,6 @@ int cmdSlice(Args& args) {
   options.minLayer = std::isnan(minLayer) ? 0.0 : minLayer;
   options.maxLayer = std::isnan(maxLayer) ? 0.0 : maxLayer;
   options.grid = std::isnan(grid) ? 0.0 : grid;
-  const std::string input = args.positional()[0];
 
   const ImplicitField field = ImplicitField::load(input);
   const Device device = deviceSpec.empty() ? Device::openDefault() : Device::open(deviceSpec);
@@ -118,7 +126,7 @@ int cmdSlice(Args& args) {
     const double h = (size[(used.axis + 2) % 3] + 4 * used.grid) / pixel;
     if (w > 65536.0 || h > 65536.0) throw UsageError("--png-xy " + std::to_string(pixel) + " gives masks larger than 65536 pixels a side");
   }
-  Staging staging(outDir);  // fails early, before slicing, if the folder is unusable
+  StagedFolder staging(outDir);  // fails early, before slicing, if the folder is unusable
   log(std::string("slicing ") + input + " along " + "xyz"[used.axis] + ", mode " + sliceModeName(used.mode) +
       (used.layer > 0.0 ? ", uniform layers " + std::to_string(used.layer)
                         : ", cusp " + std::to_string(used.cusp) + ", layers " + std::to_string(used.minLayer) + " to " +
@@ -126,7 +134,7 @@ int cmdSlice(Args& args) {
       ", grid " + std::to_string(used.grid) + ", heights " + std::to_string(used.start) + " to " +
       std::to_string(used.end));
 
-  auto t = Clock::now();
+  Timer t;
   const SliceResult result = slicer.run([&](const SliceProgress& p) {
     if (!quiet) {
       std::cerr << "  layer " << p.layer << "  height " << std::setprecision(6) << p.height << "  thickness "
@@ -135,14 +143,14 @@ int cmdSlice(Args& args) {
     }
     return true;
   });
-  const double sliceSeconds = since(t);
+  const double sliceSeconds = t.seconds();
   std::size_t touching = 0;
   for (const SliceLayer& l : result.layers) touching += l.touchesBoundary ? 1 : 0;
   if (touching > 0) {
     log("warning: in " + std::to_string(touching) + " layer(s) a level set reached the padded grid border; loops were closed there");
   }
 
-  t = Clock::now();
+  t.restart();
   writeCli(staging.path("slices.cli"), result, units);
   if (svgPerLayer) {
     const std::string dir = staging.path("svg", true);
@@ -164,7 +172,7 @@ int cmdSlice(Args& args) {
       writePng((fs::path(dir) / layerName(i, "png")).string(), img);
     }
   }
-  const double writeSeconds = since(t);
+  const double writeSeconds = t.seconds();
 
   // Summary statistics.
   double tMin = std::numeric_limits<double>::infinity(), tMax = 0.0, tSum = 0.0;
@@ -179,54 +187,70 @@ int cmdSlice(Args& args) {
   const double tMean = n > 0 ? tSum / static_cast<double>(n) : 0.0;
   if (n == 0) tMin = 0.0;
 
-  std::ostringstream js;
-  JsonWriter w(js);
-  w.beginObject().field("input", input).field("device", device.info().spec).field("mode", sliceModeName(result.mode));
-  w.field("axis", std::string(1, "xyz"[result.axis])).field("adaptive", result.adaptive);
-  w.field("cusp_rule", cuspRuleName(result.rule));
-  w.field("cusp", result.cusp).field("min_layer", result.minLayer).field("max_layer", result.maxLayer);
-  w.field("uniform_layer", result.layer).field("grid", result.grid).field("units_mm", units);
-  w.key("levels").beginArray();
-  for (double l : result.levels) w.value(l);
-  w.endArray();
-  w.field("start", result.start).field("end", result.end).field("layer_count", n);
-  w.key("thickness").beginObject().field("min", tMin).field("mean", tMean).field("max", tMax).endObject();
-  w.field("loops", loops).field("vertices", result.vertices).field("samples", result.samples);
-  w.field("refine_evaluations", result.refineEvaluations).field("layers_touching_border", touching);
-  w.key("heights").beginArray();
-  for (const SliceLayer& l : result.layers) w.value(l.height);
-  w.endArray().key("areas").beginArray();
-  for (const SliceLayer& l : result.layers) w.value(l.area);
-  w.endArray().key("loops_per_layer").beginArray();
-  for (const SliceLayer& l : result.layers) w.value(l.loops.size());
-  w.endArray();
-  w.key("layers").beginArray();
+  using Json = nlohmann::ordered_json;
+  Json heights = Json::array(), areas = Json::array(), loopsPerLayer = Json::array(), layers = Json::array();
+  for (const SliceLayer& l : result.layers) {
+    heights.push_back(l.height);
+    areas.push_back(l.area);
+    loopsPerLayer.push_back(l.loops.size());
+  }
   for (std::size_t i = 0; i < n; ++i) {
     const SliceLayer& l = result.layers[i];
     std::size_t outer = 0;
     for (const SliceLoop& p : l.loops) outer += p.outer() ? 1 : 0;
-    w.beginObject().field("index", i + 1).field("height", l.height).field("thickness", l.thickness);
-    w.field("raw_thickness", l.rawThickness).field("area", l.area).field("loops", l.loops.size());
-    w.field("outer_loops", outer).field("holes", l.loops.size() - outer).field("vertices", l.vertexCount());
-    if (pngGiven) w.field("mask_area", maskArea[i]);
-    if (l.touchesBoundary) w.field("touches_border", true);
-    w.endObject();
+    Json j{{"index", i + 1},
+           {"height", l.height},
+           {"thickness", l.thickness},
+           {"raw_thickness", l.rawThickness},
+           {"area", l.area},
+           {"loops", l.loops.size()},
+           {"outer_loops", outer},
+           {"holes", l.loops.size() - outer},
+           {"vertices", l.vertexCount()}};
+    if (pngGiven) j["mask_area"] = maskArea[i];
+    if (l.touchesBoundary) j["touches_border"] = true;
+    layers.push_back(std::move(j));
   }
-  w.endArray();
-  w.key("seconds").beginObject().field("slice", sliceSeconds).field("write", writeSeconds);
-  w.field("total", since(start)).endObject();
-  w.field("layers_per_second", sliceSeconds > 0 ? static_cast<double>(n) / sliceSeconds : 0.0);
-  w.field("vertices_per_second", sliceSeconds > 0 ? static_cast<double>(result.vertices) / sliceSeconds : 0.0);
-  w.endObject();
+  const Json summary{
+      {"input", input},
+      {"device", device.info().spec},
+      {"mode", sliceModeName(result.mode)},
+      {"axis", std::string(1, "xyz"[result.axis])},
+      {"adaptive", result.adaptive},
+      {"cusp_rule", cuspRuleName(result.rule)},
+      {"cusp", result.cusp},
+      {"min_layer", result.minLayer},
+      {"max_layer", result.maxLayer},
+      {"uniform_layer", result.layer},
+      {"grid", result.grid},
+      {"units_mm", units},
+      {"levels", result.levels},
+      {"start", result.start},
+      {"end", result.end},
+      {"layer_count", n},
+      {"thickness", {{"min", tMin}, {"mean", tMean}, {"max", tMax}}},
+      {"loops", loops},
+      {"vertices", result.vertices},
+      {"samples", result.samples},
+      {"refine_evaluations", result.refineEvaluations},
+      {"layers_touching_border", touching},
+      {"heights", std::move(heights)},
+      {"areas", std::move(areas)},
+      {"loops_per_layer", std::move(loopsPerLayer)},
+      {"layers", std::move(layers)},
+      {"seconds", {{"slice", sliceSeconds}, {"write", writeSeconds}, {"total", start.seconds()}}},
+      {"layers_per_second", sliceSeconds > 0 ? static_cast<double>(n) / sliceSeconds : 0.0},
+      {"vertices_per_second", sliceSeconds > 0 ? static_cast<double>(result.vertices) / sliceSeconds : 0.0}};
+  const std::string js = summary.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
   {
     AtomicFile f(staging.path("slices.json"));
-    f.write(js.str());
+    f.write(js);
     f.commit();
   }
   staging.commit();
 
   if (json) {
-    std::cout << js.str();
+    std::cout << js;
   } else {
     std::cout << std::setprecision(5) << "slice " << input << ": " << n << " layers (" << sliceModeName(result.mode)
               << ", " << (result.adaptive ? "adaptive" : "uniform") << "), thickness " << tMin << " to " << tMax

@@ -6,24 +6,16 @@
 
 namespace duplexfit::cli {
 
-int cmdFit(Args& args);
-int cmdMesh(Args& args);
-int cmdMeasure(Args& args);     // cmd_measure.cpp
-int cmdCheck(Args& args);       // cmd_measure.cpp
-int cmdSection(Args& args);     // cmd_section.cpp
-int cmdSlice(Args& args);       // cmd_slice.cpp
-int cmdDenoise(Args& args);     // cmd_preprocess.cpp
-int cmdNormals(Args& args);     // cmd_preprocess.cpp
-
-/// Options that take a value, per command (everything else is a flag).
-extern const std::vector<std::string> kFitValued;
-extern const std::vector<std::string> kMeshValued;
-extern const std::vector<std::string> kMeasureValued;
-extern const std::vector<std::string> kCheckValued;
-extern const std::vector<std::string> kSectionValued;
-extern const std::vector<std::string> kSliceValued;
-extern const std::vector<std::string> kDenoiseValued;
-extern const std::vector<std::string> kNormalsValued;
+int cmdDevices(int argc, char** argv);  // cmd_devices.cpp (CLI11: argv[0] is the command's name)
+int cmdSolve(int argc, char** argv);    // cmd_solve.cpp
+int cmdFit(int argc, char** argv);      // cmd_fit.cpp
+int cmdMesh(int argc, char** argv);     // cmd_mesh.cpp
+int cmdMeasure(int argc, char** argv);  // cmd_measure.cpp
+int cmdCheck(int argc, char** argv);    // cmd_measure.cpp
+int cmdSection(int argc, char** argv);  // cmd_section.cpp
+int cmdSlice(int argc, char** argv);    // cmd_slice.cpp
+int cmdDenoise(int argc, char** argv);  // cmd_preprocess.cpp
+int cmdNormals(int argc, char** argv);  // cmd_preprocess.cpp
 
 /// Each module's part of `duplexfit --help` (indented like main.cpp's, ending in a newline).
 extern const char* const kMeasureHelp;   // measure and check

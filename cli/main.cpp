@@ -1,31 +1,16 @@
-// duplexfit command-line tool: `devices` lists OpenCL devices; `solve` assembles and solves the Wendland
-// system of one duplex-fit level for a generated sphere on the chosen device (the foundation's demo job).
-#include <chrono>
-#include <cmath>
-#include <cstdlib>
-#include <iomanip>
+// duplexfit command-line tool: the top-level help, the dispatch to the subcommands (cmd_*.cpp) and the
+// mapping of exceptions to exit codes (1 usage, 2 I/O, 3 device, 4 numerical).
 #include <iostream>
-#include <algorithm>
-#include <map>
-#include <optional>
-#include <sstream>
 #include <string>
-#include <vector>
 
-#include "duplexfit/device.hpp"
 #include "duplexfit/error.hpp"
-#include "duplexfit/linalg.hpp"
 #include "duplexfit/version.hpp"
-#include "duplexfit/wendland.hpp"
 #include "args.hpp"
 #include "commands.hpp"
-#include "json.hpp"
 
 namespace {
 
 using namespace duplexfit;
-using Clock = std::chrono::steady_clock;
-using cli::Args;
 using cli::UsageError;
 using cli::kUsage;
 using cli::kDevice;
@@ -93,172 +78,6 @@ Progress goes to stderr; --quiet silences it.
 )";
 
 
-std::string mib(std::uint64_t bytes) {
-  std::ostringstream s;
-  s << (bytes >> 20) << " MiB";
-  return s.str();
-}
-
-int cmdDevices(Args& args) {
-  const bool json = args.flag("json");
-  args.flag("quiet");
-  args.finish();
-  std::vector<DeviceInfo> all = Device::enumerate();
-  all.push_back(Device::reference().info());
-  const std::string defaultSpec = Device::openDefault().info().spec;
-  if (json) {
-    cli::JsonWriter w(std::cout);
-    w.beginObject().field("default", defaultSpec).key("devices").beginArray();
-    for (const DeviceInfo& d : all) {
-      w.beginObject()
-          .field("spec", d.spec)
-          .field("platform", d.platform)
-          .field("name", d.name)
-          .field("vendor", d.vendor)
-          .field("type", deviceTypeName(d.type))
-          .field("compute_units", d.computeUnits)
-          .field("global_mem_bytes", d.globalMemBytes)
-          .field("max_alloc_bytes", d.maxAllocBytes)
-          .field("fp64", d.fp64)
-          .field("opencl_c_version", d.openclCVersion)
-          .field("device_version", d.deviceVersion)
-          .field("driver_version", d.driverVersion)
-          .endObject();
-    }
-    w.endArray().endObject();
-    return 0;
-  }
-  std::cout << std::left << std::setw(6) << "spec" << std::setw(30) << "platform" << std::setw(40) << "name"
-            << std::setw(6) << "type" << std::right << std::setw(5) << "CUs" << std::setw(12) << "global"
-            << std::setw(12) << "max alloc" << std::setw(6) << "fp64" << "  " << std::left << std::setw(20)
-            << "OpenCL C" << "driver\n";
-  for (const DeviceInfo& d : all) {
-    std::cout << std::left << std::setw(6) << (d.spec == defaultSpec ? d.spec + "*" : d.spec) << std::setw(30)
-              << d.platform.substr(0, 29) << std::setw(40) << d.name.substr(0, 39) << std::setw(6)
-              << deviceTypeName(d.type) << std::right << std::setw(5) << d.computeUnits << std::setw(12)
-              << mib(d.globalMemBytes) << std::setw(12) << mib(d.maxAllocBytes) << std::setw(6)
-              << (d.fp64 ? "yes" : "no") << "  " << std::left << std::setw(20) << d.openclCVersion
-              << d.driverVersion << "\n";
-  }
-  std::cout << "(* = default device; choose with --device SPEC or DUPLEXFIT_DEVICE)\n";
-  return 0;
-}
-
-// The centres of one duplex-fit level on a sphere of radius 0.5 (docs/method.md §3): n Fibonacci points,
-// their copies δ inward (target δ) and σ/10 outward (target −σ/10). Returns targets t.
-Points sphereLevel(int n, double delta, double sigma, Eigen::VectorXd& targets) {
-  Points c(3 * n, 3);
-  targets.resize(3 * n);
-  const double golden = M_PI * (3.0 - std::sqrt(5.0));
-  for (int i = 0; i < n; ++i) {
-    const double z = 1.0 - (2.0 * i + 1.0) / n;
-    const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
-    const Eigen::RowVector3d u(r * std::cos(golden * i), r * std::sin(golden * i), z);
-    c.row(i) = 0.5 * u;
-    c.row(n + i) = (0.5 - delta) * u;
-    c.row(2 * n + i) = (0.5 + sigma / 10) * u;
-    targets[i] = 0.0;
-    targets[n + i] = delta;
-    targets[2 * n + i] = -sigma / 10;
-  }
-  return c;
-}
-
-double seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
-
-int cmdSolve(Args& args) {
-  const bool quiet = args.flag("quiet");
-  const bool json = args.flag("json");
-  const bool strict = args.flag("strict");
-  const std::string spec = args.str("device", "");
-  const Precision precision = parsePrecision(args.str("precision", "float").c_str());
-  const long points = args.integer("points", 20000);
-  const double delta = args.num("delta", 0.05);
-  const double nnz = args.num("nnz", 45);
-  SolverOptions options;
-  options.relativeTolerance = args.num("tol", 0.0);
-  options.maxIterations = static_cast<int>(args.integer("max-iterations", 20000));
-  args.finish();
-  if (points < 1 || points > 100'000'000) throw UsageError("--points must be between 1 and 1e8");
-  if (!(delta > 0.0 && delta < 0.5)) throw UsageError("--delta must be in (0, 0.5) for a sphere of radius 0.5");
-  if (!(nnz >= 1.0)) throw UsageError("--nnz must be at least 1");
-  if (options.maxIterations < 1) throw UsageError("--max-iterations must be at least 1");
-  if (options.relativeTolerance < 0.0) throw UsageError("--tol must be positive");
-
-  auto log = [&](const std::string& s) {
-    if (!quiet) std::cerr << s << std::endl;
-  };
-  const Device device = spec.empty() ? Device::openDefault() : Device::open(spec);
-  log("device: " + device.description());
-  auto t0 = Clock::now();
-  device.compileKernels(precision);
-  const double compileSeconds = seconds(t0);
-  // Surface area π·(2r)²/… : about 3·n·(σ/(2r))²·4 neighbours within σ over the three layers.
-  const int n = static_cast<int>(points);
-  const double sigma = std::sqrt(nnz / (3.0 * n));
-  Eigen::VectorXd targets;
-  t0 = Clock::now();
-  const Points centres = sphereLevel(n, delta, sigma, targets);
-  log("assembling " + std::to_string(3 * n) + " unknowns, sigma " + std::to_string(sigma) + " ...");
-  const CsrMatrix a = assembleWendland(centres, sigma);
-  const double assemblySeconds = seconds(t0);
-  const Eigen::VectorXd b = targets.array() + 1.0;  // b = t − f_0 with f_0 = −1 (docs/method.md §5)
-  t0 = Clock::now();
-  const DeviceCsr m = DeviceCsr::upload(device, a, precision);
-  const DeviceVector db = DeviceVector::upload(device, b, precision);
-  DeviceVector x(device, b.size(), precision);
-  const double uploadSeconds = seconds(t0);
-  options.progress = [&](int it, double res) {
-    if (!quiet) std::cerr << "  CG iteration " << it << ": relative residual " << res << "\n";
-    return true;
-  };
-  const SolveStats stats = solveCg(m, db, x, options);
-  // Verify on the host in double, independently of the device arithmetic.
-  const Eigen::VectorXd xs = x.download();
-  const double hostResidual = (b - a.multiply(xs)).norm() / b.norm();
-  log(std::string("CG ") + stopReasonName(stats.reason) + " after " + std::to_string(stats.iterations) +
-      " iterations");
-
-  if (json) {
-    cli::JsonWriter w(std::cout);
-    w.beginObject()
-        .field("device", device.info().spec)
-        .field("device_name", device.info().name)
-        .field("precision", precisionName(precision))
-        .field("unknowns", a.rows)
-        .field("nonzeros", a.nonZeros())
-        .field("sigma", sigma)
-        .field("delta", delta)
-        .field("kernel_build_seconds", compileSeconds)
-        .field("assembly_seconds", assemblySeconds)
-        .field("upload_seconds", uploadSeconds)
-        .field("converged", stats.converged)
-        .field("stop_reason", stopReasonName(stats.reason))
-        .field("iterations", stats.iterations)
-        .field("tolerance", stats.tolerance)
-        .field("relative_residual", stats.relativeResidual)
-        .field("host_relative_residual", hostResidual)
-        .field("solve_seconds", stats.seconds)
-        .field("ms_per_iteration", stats.iterations > 0 ? 1e3 * stats.seconds / stats.iterations : 0.0)
-        .endObject();
-  } else {
-    std::cout << "device              " << device.description() << "\n"
-              << "precision           " << precisionName(precision) << "\n"
-              << "unknowns            " << a.rows << " (" << n << " surface, offset and off-surface points)\n"
-              << "non-zeros           " << a.nonZeros() << " (" << std::fixed << std::setprecision(1)
-              << static_cast<double>(a.nonZeros()) / std::max(1, a.rows) << " per row)\n"
-              << std::defaultfloat << std::setprecision(6) << "kernel build        " << compileSeconds
-              << " s\n"
-              << "assembly            " << assemblySeconds << " s\n"
-              << "CG                  " << stopReasonName(stats.reason) << ", " << stats.iterations
-              << " iterations, " << stats.seconds << " s ("
-              << (stats.iterations > 0 ? 1e3 * stats.seconds / stats.iterations : 0.0) << " ms/iteration)\n"
-              << "relative residual   " << stats.relativeResidual << " (device), " << hostResidual
-              << " (host, double), tolerance " << stats.tolerance << "\n";
-  }
-  return strict && !stats.converged ? kNumerical : 0;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -277,46 +96,17 @@ int main(int argc, char** argv) {
       std::cout << "duplexfit " << DUPLEXFIT_VERSION_STRING << "\n";
       return 0;
     }
-    if (cmd == "devices") {
-      Args args(argc, argv, 2, {});
-      return cmdDevices(args);
-    }
-    if (cmd == "fit") {
-      Args args(argc, argv, 2, cli::kFitValued);
-      return cli::cmdFit(args);
-    }
-    if (cmd == "mesh") {
-      Args args(argc, argv, 2, cli::kMeshValued);
-      return cli::cmdMesh(args);
-    }
-    if (cmd == "measure") {
-      Args args(argc, argv, 2, cli::kMeasureValued);
-      return cli::cmdMeasure(args);
-    }
-    if (cmd == "check") {
-      Args args(argc, argv, 2, cli::kCheckValued);
-      return cli::cmdCheck(args);
-    }
-    if (cmd == "section") {
-      Args args(argc, argv, 2, cli::kSectionValued);
-      return cli::cmdSection(args);
-    }
-    if (cmd == "slice") {
-      Args args(argc, argv, 2, cli::kSliceValued);
-      return cli::cmdSlice(args);
-    }
-    if (cmd == "denoise") {
-      Args args(argc, argv, 2, cli::kDenoiseValued);
-      return cli::cmdDenoise(args);
-    }
-    if (cmd == "normals") {
-      Args args(argc, argv, 2, cli::kNormalsValued);
-      return cli::cmdNormals(args);
-    }
-    if (cmd == "solve") {
-      Args args(argc, argv, 2, {"device", "precision", "points", "delta", "nnz", "tol", "max-iterations"});
-      return cmdSolve(args);
-    }
+    // Commands parsed with CLI11 see their own name as argv[0].
+    if (cmd == "devices") return cli::cmdDevices(argc - 1, argv + 1);
+    if (cmd == "solve") return cli::cmdSolve(argc - 1, argv + 1);
+    if (cmd == "fit") return cli::cmdFit(argc - 1, argv + 1);
+    if (cmd == "mesh") return cli::cmdMesh(argc - 1, argv + 1);
+    if (cmd == "measure") return cli::cmdMeasure(argc - 1, argv + 1);
+    if (cmd == "check") return cli::cmdCheck(argc - 1, argv + 1);
+    if (cmd == "section") return cli::cmdSection(argc - 1, argv + 1);
+    if (cmd == "slice") return cli::cmdSlice(argc - 1, argv + 1);
+    if (cmd == "denoise") return cli::cmdDenoise(argc - 1, argv + 1);
+    if (cmd == "normals") return cli::cmdNormals(argc - 1, argv + 1);
     throw UsageError("unknown command '" + cmd + "' (try duplexfit --help)");
   } catch (const UsageError& e) {
     std::cerr << "duplexfit: " << e.what() << "\n";

@@ -13,6 +13,8 @@ packages=(
   doctest-dev                          # unit tests
   nlohmann-json3-dev                   # the tests parse report.json and --json output (header-only)
   libpng-dev                           # PNG output (section pictures, slice masks)
+  nlohmann-json3-dev                   # JSON output (report.json, --json), header-only
+  libcli11-dev                         # command-line parsing of the duplexfit tool, header-only
   clinfo                               # device diagnostics
 )
 missing=()

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <filesystem>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -56,6 +57,36 @@ class AtomicFile {
   int fd_ = -1;
   bool committed_ = false;
   std::vector<char> buffer_;
+};
+
+/// Output staging for several files written together: every output goes to a temporary folder
+/// ".duplexfit-tmp-<pid>" inside the output folder first, commit() moves each entry into place, and the
+/// destructor removes whatever is left, so that a failed run leaves no partial output.
+///
+///     StagedFolder out("results");          // fails early when "results" cannot be created or written
+///     writeMesh(out.path("zero.ply"), mesh);
+///     out.commit();
+class StagedFolder {
+ public:
+  /// Creates the output folder (and parents) and the staging folder inside it.
+  /// @throws IoError when either cannot be created.
+  explicit StagedFolder(const std::filesystem::path& outDir);
+  /// Removes the staging folder and whatever is still in it. Never throws.
+  ~StagedFolder();
+  StagedFolder(const StagedFolder&) = delete;
+  StagedFolder& operator=(const StagedFolder&) = delete;
+
+  /// The staged path of output `name`; with `folder`, the folder is created. @throws IoError.
+  std::string path(const std::string& name, bool folder = false);
+  /// Moves every staged entry into the output folder (a folder replaces an older one of that name).
+  /// @throws IoError naming the entry that cannot be moved.
+  void commit();
+  /// The output folder.
+  const std::filesystem::path& folder() const noexcept { return outDir_; }
+
+ private:
+  std::filesystem::path outDir_, dir_;
+  std::vector<std::string> names_;
 };
 
 }  // namespace duplexfit

@@ -124,4 +124,42 @@ void AtomicFile::commit() {
   }
 }
 
+StagedFolder::StagedFolder(const std::filesystem::path& outDir) : outDir_(outDir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(outDir_, ec);
+  if (ec || !fs::is_directory(outDir_)) {
+    throw IoError(outDir_.string() + ": cannot create the output folder (" + ec.message() + ")");
+  }
+  dir_ = outDir_ / (".duplexfit-tmp-" + std::to_string(getpid()));
+  fs::remove_all(dir_, ec);
+  fs::create_directory(dir_, ec);
+  if (ec) throw IoError(outDir_.string() + ": the output folder is not writable (" + ec.message() + ")");
+}
+
+StagedFolder::~StagedFolder() {
+  std::error_code ec;
+  std::filesystem::remove_all(dir_, ec);
+}
+
+std::string StagedFolder::path(const std::string& name, bool folder) {
+  names_.push_back(name);
+  if (folder) {
+    std::error_code ec;
+    std::filesystem::create_directory(dir_ / name, ec);
+    if (ec) throw IoError((dir_ / name).string() + ": cannot create (" + ec.message() + ")");
+  }
+  return (dir_ / name).string();
+}
+
+void StagedFolder::commit() {
+  namespace fs = std::filesystem;
+  for (const std::string& n : names_) {
+    std::error_code ec;
+    if (fs::is_directory(dir_ / n)) fs::remove_all(outDir_ / n, ec);
+    fs::rename(dir_ / n, outDir_ / n, ec);
+    if (ec) throw IoError((outDir_ / n).string() + ": cannot move the output into place (" + ec.message() + ")");
+  }
+}
+
 }  // namespace duplexfit

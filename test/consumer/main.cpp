@@ -1,13 +1,74 @@
 // Consumer check: links the installed duplexfit, assembles a small Wendland system and solves it on
-// the reference device and on the default device. Exit status 0 only if both converge and agree.
+// the reference device and on the default device, then runs the whole fit-and-extract pipeline on a
+// sphere and writes its outputs into the folder argv[1]. Exit status 0 only if the solves converge and
+// agree and the pipeline gives a closed surface and offset surface.
 #include <duplexfit/device.hpp>
+#include <duplexfit/error.hpp>
+#include <duplexfit/interrupter.hpp>
 #include <duplexfit/linalg.hpp>
+#include <duplexfit/pipeline.hpp>
 #include <duplexfit/wendland.hpp>
 
 #include <cmath>
+#include <filesystem>
 #include <iostream>
+#include <string>
 
-int main() {
+namespace {
+
+/// Counts the fit's progress events (an Interrupter that never interrupts).
+class CountingInterrupter : public duplexfit::Interrupter {
+ public:
+  void fitEvent(const duplexfit::FitEvent& e) override { solves += e.stage == duplexfit::FitStage::Solve ? 1 : 0; }
+  int solves = 0;
+};
+
+/// The whole pipeline on `cloud`: a fit with one inward offset, both surfaces extracted and self-checked.
+int pipeline(const duplexfit::PointSet& cloud, const std::string& outDir) {
+  using namespace duplexfit;
+  CountingInterrupter progress;
+  // --- the README's five lines ---
+  PipelineOptions options;
+  options.fit.offsets = {0.05};
+  options.surface.resolution = 40;
+  const PipelineResult result = runPipeline(Device::openDefault(), cloud, options, &progress);
+  writePipelineOutputs(result, outDir);  // zero.ply, offset1.ply, field.dpxf, report.json
+  // ---
+  for (const PipelineSurface& s : result.surfaces) {
+    std::cout << "surface at offset " << s.offset << ": " << s.topology.faces << " triangles, "
+              << s.topology.components << " component(s)\n";
+    if (!s.topology.watertight() || s.topology.components != 1) return 1;
+  }
+  std::cout << progress.solves << " solve events, self-check " << (result.report.selfCheck.ok() ? "ok" : "FAILED")
+            << "\n";
+  const bool written = std::filesystem::exists(std::filesystem::path(outDir) / "report.json");
+  return result.surfaces.size() == 2 && progress.solves > 0 && result.report.selfCheck.ok() && written ? 0 : 1;
+}
+
+/// Cancels at the first CG solve: runPipeline must throw Cancelled.
+class CancelAtSolve : public duplexfit::Interrupter {
+ public:
+  void fitEvent(const duplexfit::FitEvent& e) override { cancel = cancel || e.stage == duplexfit::FitStage::Solve; }
+  bool wasInterrupted(int) override { return cancel; }
+  bool cancel = false;
+};
+
+bool cancels(const duplexfit::PointSet& cloud) {
+  CancelAtSolve cancel;
+  duplexfit::PipelineOptions options;
+  options.fit.offsets = {0.05};
+  try {
+    duplexfit::runPipeline(duplexfit::Device::openDefault(), cloud, options, &cancel);
+  } catch (const duplexfit::Cancelled& e) {
+    std::cout << "cancelled: " << e.what() << "\n";
+    return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
   using namespace duplexfit;
   const int n = 400;
   Points centres(n, 3);
@@ -33,5 +94,10 @@ int main() {
   }
   const double diff = (solutions[0] - solutions[1]).norm() / solutions[0].norm();
   std::cout << "relative difference " << diff << "\n";
-  return diff < 1e-3 ? 0 : 1;
+  if (!(diff < 1e-3)) return 1;
+  // The same sphere, with outward normals, through the pipeline.
+  Points normals = centres / 0.5;
+  const PointSet cloud(centres, normals);
+  if (!cancels(cloud)) return 1;
+  return pipeline(cloud, argc > 1 ? argv[1] : "consumer-out");
 }
