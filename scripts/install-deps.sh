@@ -11,9 +11,8 @@ packages=(
   libeigen3-dev                        # Eigen: host linear algebra and the reference solver
   libflann-dev liblz4-dev              # FLANN k-d tree (neighbour queries); lz4 is linked by its headers
   doctest-dev                          # unit tests
-  nlohmann-json3-dev                   # the tests parse report.json and --json output (header-only)
   libpng-dev                           # PNG output (section pictures, slice masks)
-  nlohmann-json3-dev                   # JSON output (report.json, --json), header-only
+  nlohmann-json3-dev                   # JSON: report.json and --json output, parsed by the tests (header-only)
   libcli11-dev                         # command-line parsing of the duplexfit tool, header-only
   clinfo                               # device diagnostics
 )
