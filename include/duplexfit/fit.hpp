@@ -9,6 +9,7 @@
 
 #include "duplexfit/device.hpp"
 #include "duplexfit/field.hpp"
+#include "duplexfit/interrupter.hpp"
 #include "duplexfit/linalg.hpp"
 #include "duplexfit/point_set.hpp"
 
@@ -113,12 +114,22 @@ struct OffsetCorrectionReport {
 };
 
 /// The whole fit: parameters actually used, per-level reports, errors (§8.1) and totals.
+/// The side of the surface that gets the off-surface points (docs/method.md §3.2): the side without offsets.
+enum class OffSurfaceSide {
+  Outside,  ///< inward offsets only
+  Inside,   ///< outward offsets only
+  None,     ///< offsets on both sides
+  Both      ///< no offsets
+};
+/// "outside", "inside", "none (offsets on both sides)", "both sides (no offsets)" (report.json's words).
+const char* offSurfaceSideName(OffSurfaceSide side) noexcept;
+
 struct FitReport {
   std::string device;
   std::string precision;
   std::size_t inputPoints = 0, duplicatesMerged = 0, zeroNormals = 0;
   std::vector<double> offsets;         ///< δ in input units
-  std::string offSurfaceSide;          ///< "outside", "inside" or "none (offsets on both sides)"
+  OffSurfaceSide offSurfaceSide = OffSurfaceSide::Outside;  ///< where the off-surface points went
   double sigma0 = 0.0, sigma1 = 0.0;   ///< input units
   int levels = 0;                      ///< M
   bool stoppedEarly = false;           ///< the ε_fit test ended the fit before level M
@@ -143,16 +154,9 @@ struct FitResult {
   std::shared_ptr<const FieldEvaluator> evaluator;
 };
 
-/// A progress event: stage ("hierarchy", "constraints", "assembly", "solve", "residual", "errors"),
-/// level (0 outside levels), and CG iteration/residual during solves.
-struct FitProgress {
-  std::string stage;
-  int level = 0;
-  int levels = 0;
-  int iteration = 0;
-  double residual = 0.0;
-  std::string message;
-};
+/// A progress event of the fit (stage as an enum, level 0 outside levels, CG iteration/residual during
+/// solves): the FitEvent that an Interrupter receives.
+using FitProgress = FitEvent;
 /// Return false to cancel: fit() then throws Cancelled.
 using FitProgressCallback = std::function<bool(const FitProgress&)>;
 

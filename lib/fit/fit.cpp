@@ -28,8 +28,11 @@ using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 void report(const FitProgressCallback& progress, FitProgress event) {
-  if (progress && !progress(event)) throw Cancelled("fit cancelled during " + event.stage);
+  if (progress && !progress(event)) throw Cancelled(std::string("fit cancelled during ") + fitStageName(event.stage));
 }
+
+constexpr const char* kStageNames[] = {"start",    "hierarchy",  "constraints", "assembly", "solve",
+                                       "residual", "correction", "errors",      "other"};
 
 void checkOptions(const FitOptions& o) {
   auto bad = [](const std::string& what) { throw InvalidArgument("fit options: " + what); };
@@ -60,6 +63,21 @@ struct LevelWork : LevelReport {
 };
 
 }  // namespace
+
+const char* fitStageName(FitStage stage) noexcept {
+  const auto i = static_cast<std::size_t>(stage);
+  return i < std::size(kStageNames) ? kStageNames[i] : "other";
+}
+
+const char* offSurfaceSideName(OffSurfaceSide side) noexcept {
+  switch (side) {
+    case OffSurfaceSide::Outside: return "outside";
+    case OffSurfaceSide::Inside: return "inside";
+    case OffSurfaceSide::None: return "none (offsets on both sides)";
+    case OffSurfaceSide::Both: return "both sides (no offsets)";
+  }
+  return "outside";
+}
 
 FitScales fitScales(const Points& positions, double alpha, int levels) {
   if (positions.rows() == 0) throw InvalidArgument("fitScales: no points");
@@ -105,14 +123,14 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   const bool outward = std::any_of(deltas.begin(), deltas.end(), [](double d) { return d < 0; });
   // Off-surface points go on the side without offsets (§3.2); none when offsets cover both sides.
   const int offSide = inward && outward ? 0 : inward ? -1 : outward ? 1 : 2;
-  rep.offSurfaceSide = offSide == 0    ? "none (offsets on both sides)"
-                       : offSide == -1 ? "outside"
-                       : offSide == 1  ? "inside"
-                                       : "both sides (no offsets)";
+  rep.offSurfaceSide = offSide == 0    ? OffSurfaceSide::None
+                       : offSide == -1 ? OffSurfaceSide::Outside
+                       : offSide == 1  ? OffSurfaceSide::Inside
+                                       : OffSurfaceSide::Both;
 
   // Hierarchy (§4).
   auto t = Clock::now();
-  report(progress, {"hierarchy", 0, 0, 0, 0.0, "building the octree"});
+  report(progress, {FitStage::Hierarchy, 0, 0, 0, 0.0, "building the octree"});
   const detail::HierarchyBox box = detail::hierarchyBox(u);
   const double sigma1 = options.alpha * box.diagonal;
   const double sigma0 = detail::adaptiveSigma0(u, box);
@@ -129,7 +147,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   const int lastAnchorLevel = options.signAnchors ? levels - std::max(0, options.anchorSkipFinest) : 0;
   if (lastAnchorLevel >= 1) {
     t = Clock::now();
-    report(progress, {"hierarchy", 0, 0, 0, 0.0, "winding number"});
+    report(progress, {FitStage::Hierarchy, 0, 0, 0, 0.0, "winding number"});
     const Points outwardNormals = -nu;
     winding = std::make_unique<WindingNumber>(u, outwardNormals);
     inputIndex = std::make_unique<NeighborIndex>(u);
@@ -149,7 +167,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   auto solveLevel = [&](const Points& centres, double sigma, double lambda, const Eigen::VectorXd& b, int k,
                         LevelWork& lr, const detail::LevelConstraints* superset) {
     auto t0 = Clock::now();
-    report(progress, {"assembly", k, levels, 0, 0.0, std::to_string(centres.rows()) + " centres"});
+    report(progress, {FitStage::Assembly, k, levels, 0, 0.0, std::to_string(centres.rows()) + " centres"});
     CsrMatrix a = superset != nullptr ? detail::assembleWendland(centres, sigma, lambda, *superset->candidateIndex,
                                                                  superset->candidateRow)
                                       : assembleWendland(centres, sigma, lambda);
@@ -157,7 +175,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     lr.secondsAssembly = since(t0);
 
     t0 = Clock::now();
-    report(progress, {"solve", k, levels, 0, 0.0, std::to_string(lr.nonZeros) + " non-zeros"});
+    report(progress, {FitStage::Solve, k, levels, 0, 0.0, std::to_string(lr.nonZeros) + " non-zeros"});
     const DeviceCsr m = DeviceCsr::upload(device, a, options.precision);
     const DeviceVector db = DeviceVector::upload(device, b, options.precision);
     DeviceVector x(device, static_cast<std::size_t>(b.size()), options.precision);
@@ -165,7 +183,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     if (so.absoluteTolerance == 0.0) so.absoluteTolerance = options.levelTolerance;
     so.progress = [&](int it, double res) {
       if (options.solver.progress && !options.solver.progress(it, res)) return false;
-      return !progress || progress({"solve", k, levels, it, res, ""});
+      return !progress || progress({FitStage::Solve, k, levels, it, res, ""});
     };
     std::unique_ptr<Preconditioner> pre;
     if (options.preconditioner == PreconditionerKind::BlockJacobi) {
@@ -195,7 +213,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     lr.sigma = sigma / norm.scale;
 
     t = Clock::now();
-    report(progress, {"constraints", k, levels, 0, 0.0, ""});
+    report(progress, {FitStage::Constraints, k, levels, 0, 0.0, ""});
     detail::LevelPoints level = k < levels ? detail::cellCentroids(u, nu, box, k) : detail::LevelPoints{u, nu};
     detail::ConstraintOptions co;
     co.offsets = deltas;
@@ -261,7 +279,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
 
     // Right-hand side b = t − f_{k−1}(C) (§5), f_0 = −1.
     t = Clock::now();
-    report(progress, {"residual", k, levels, 0, 0.0, ""});
+    report(progress, {FitStage::Residual, k, levels, 0, 0.0, ""});
     Eigen::VectorXd fPrev = Eigen::VectorXd::Constant(c.centres.rows(), -1.0);
     if (!fitted.empty()) fPrev = evaluator->evaluateNormalized(c.centres);
     const Eigen::VectorXd b = c.targets - fPrev;
@@ -306,7 +324,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   // the difference between the true distance to the samples and δ on each fitted δ level.
   if (options.offsetCorrection && !deltas.empty() && !fitted.empty() && !rep.stoppedEarly) {
     t = Clock::now();
-    report(progress, {"correction", 0, levels, 0, 0.0, "offset levels against the distance to the samples"});
+    report(progress, {FitStage::Correction, 0, levels, 0, 0.0, "offset levels against the distance to the samples"});
     OffsetCorrectionReport& cr = rep.correction;
     double minDelta = std::numeric_limits<double>::infinity();
     for (const double d : deltas) minDelta = std::min(minDelta, std::abs(d));
@@ -422,7 +440,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
 
   // E_0 (§8.1): max |f| at every input point. Those that are level-M centres have it from the final
   // residual; the others (merged away, dropped, or all of them after an early stop) are evaluated.
-  report(progress, {"errors", 0, levels, 0, 0.0, ""});
+  report(progress, {FitStage::Errors, 0, levels, 0, 0.0, ""});
   Points rest;
   if (finestIsInput) {
     rest.resize(static_cast<Eigen::Index>(notCentres.size()), 3);

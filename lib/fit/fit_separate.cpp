@@ -43,7 +43,7 @@ SeparateFitResult fitSeparate(const Device& device, const PointSet& points, cons
   single.offsets.clear();
   single.offsetsRelative = false;
   auto announce = [&](const std::string& what) {
-    if (progress && !progress({"start", 0, 0, 0, 0.0, what})) throw Cancelled("fit cancelled");
+    if (progress && !progress({FitStage::Start, 0, 0, 0, 0.0, what})) throw Cancelled("fit cancelled");
   };
   // Checked before any work.
   const std::vector<double> deltas = detail::worldOffsets(options.offsets, options.offsetsRelative, side);

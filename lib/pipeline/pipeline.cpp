@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <iomanip>
+#include <memory>
 #include <sstream>
 #include <utility>
 
@@ -17,16 +18,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
-constexpr const char* kStageNames[] = {"start",    "hierarchy",  "constraints", "assembly", "solve",
-                                       "residual", "correction", "errors",      "other"};
-
-FitStage parseStage(const std::string& name) {
-  for (std::size_t i = 0; i + 1 < std::size(kStageNames); ++i) {
-    if (name == kStageNames[i]) return static_cast<FitStage>(i);
-  }
-  return FitStage::Other;
-}
 
 /// The Interrupter (or none) behind the per-operation callbacks, with the stage bookkeeping.
 class Progress {
@@ -50,8 +41,7 @@ class Progress {
     if (!i_) return {};
     Interrupter* i = i_;
     return [i](const FitProgress& p) {
-      const FitEvent e{parseStage(p.stage), p.level, p.levels, p.iteration, p.residual, p.message};
-      i->fitEvent(e);
+      i->fitEvent(p);
       const int percent = p.levels > 0 && p.level > 0 ? 100 * (p.level - 1) / p.levels : -1;
       return !i->wasInterrupted(percent);
     };
@@ -160,6 +150,7 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
   // surface the 0-level of its own field (the baseline of the paper's Table 1).
   progress.start("fit");
   FitReport& rep = report.fit;
+  std::shared_ptr<const FieldEvaluator> evaluator;  // the duplex fit's, reused by the extraction
   if (options.separate) {
     SeparateFitResult sep = fitSeparate(device, file.points, fitOptions, progress.fit());
     rep = sep.zeroReport;
@@ -178,6 +169,7 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
     FitResult fitted = fit(device, file.points, fitOptions, progress.fit());
     rep = std::move(fitted.report);
     result.fields.push_back(std::move(fitted.field));
+    evaluator = std::move(fitted.evaluator);
   }
   rep.duplicatesMerged = report.duplicatesMerged;
   progress.end();
@@ -202,7 +194,8 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
   std::vector<SurfaceResult> extracted;
   std::vector<Mesh> meshes;
   if (!options.separate) {
-    extracted.push_back(extractSurfaces(device, result.fields[0], isos, surface, progress.polygonize()));
+    extracted.push_back(evaluator ? extractSurfaces(*evaluator, result.fields[0], isos, surface, progress.polygonize())
+                                  : extractSurfaces(device, result.fields[0], isos, surface, progress.polygonize()));
     meshes = std::move(extracted.back().meshes);
   } else {
     // The separate fields share the zero field's grid cell unless the user chose one, so that both modes
@@ -251,10 +244,6 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
 
 }  // namespace
 
-const char* fitStageName(FitStage stage) noexcept {
-  const auto i = static_cast<std::size_t>(stage);
-  return i < std::size(kStageNames) ? kStageNames[i] : "other";
-}
 
 bool PipelineReport::converged() const noexcept {
   const auto ok = [](const FitReport& r) {

@@ -30,7 +30,7 @@ void addFitReport(Json& w, const FitReport& rep) {
   w["device"] = rep.device;
   w["precision"] = rep.precision;
   w["offsets"] = rep.offsets;
-  w["off_surface_side"] = rep.offSurfaceSide;
+  w["off_surface_side"] = offSurfaceSideName(rep.offSurfaceSide);
   w["sigma0"] = rep.sigma0;
   w["sigma1"] = rep.sigma1;
   w["levels"] = rep.levels;

@@ -48,7 +48,7 @@ TEST_SUITE("fit") {
       CHECK(scales.sigma1 == doctest::Approx(r.report.sigma1).epsilon(1e-9));
       CHECK(scales.sigma0 == doctest::Approx(r.report.sigma0).epsilon(1e-9));
       CHECK(scales.sigmaFinest == doctest::Approx(r.report.sigma1 / std::pow(2.0, r.report.levels - 1)).epsilon(1e-9));
-      CHECK(r.report.offSurfaceSide == "outside");
+      CHECK(r.report.offSurfaceSide == OffSurfaceSide::Outside);
       for (const LevelReport& l : r.report.levelReports) {
         CHECK(l.solve.converged);
         CHECK(l.offsetKept[0] == l.offsetCandidates[0]);  // exact normals on a sphere: all valid (§3.1)
@@ -77,14 +77,14 @@ TEST_SUITE("fit") {
     FitOptions out;
     out.offsets = {-0.05};
     const FitResult r = fit(d, cloud, out);
-    CHECK(r.report.offSurfaceSide == "inside");
+    CHECK(r.report.offSurfaceSide == OffSurfaceSide::Inside);
     CHECK(sphereError(r.field, d, 0.55, -0.05) <= 5e-4);
     CHECK(sphereError(r.field, d, 0.5, 0.0) <= 5e-4);
 
     FitOptions both;
     both.offsets = {0.1, 0.05, -0.05};
     const FitResult m = fit(d, cloud, both);
-    CHECK(m.report.offSurfaceSide == "none (offsets on both sides)");
+    CHECK(m.report.offSurfaceSide == OffSurfaceSide::None);
     CHECK(m.report.offsets.size() == 3);
     CHECK(sphereError(m.field, d, 0.4, 0.1) <= 1e-3);
     CHECK(sphereError(m.field, d, 0.45, 0.05) <= 5e-4);
@@ -105,7 +105,7 @@ TEST_SUITE("fit") {
     // Every field is a plain surface fit: no offsets inside it, off-surface points on both sides.
     for (const FitReport* rep : {&r.zeroReport, &r.offsetReports[0], &r.offsetReports[1]}) {
       CHECK(rep->offsets.empty());
-      CHECK(rep->offSurfaceSide == "both sides (no offsets)");
+      CHECK(rep->offSurfaceSide == OffSurfaceSide::Both);
       CHECK(rep->e0 <= 1e-4);
     }
     CHECK(r.zero.offsets().empty());
@@ -182,16 +182,24 @@ TEST_SUITE("fit") {
 
   TEST_CASE("fit: progress reports every stage and can cancel") {
     const PointSet cloud = sphereCloud(1000, 0.5);
-    std::vector<std::string> stages;
+    std::vector<FitStage> stages;
     FitOptions o;
     o.offsets = {0.1};
     const FitResult r = fit(Device::reference(), cloud, o, [&](const FitProgress& p) {
       if (stages.empty() || stages.back() != p.stage) stages.push_back(p.stage);
       return true;
     });
-    CHECK(std::find(stages.begin(), stages.end(), "solve") != stages.end());
-    CHECK(std::find(stages.begin(), stages.end(), "errors") != stages.end());
-    CHECK_THROWS_AS(fit(Device::reference(), cloud, o, [](const FitProgress& p) { return p.stage != "assembly"; }),
-                    Cancelled);
+    // Hierarchy first, then per level constraints → residual (from level 2) → assembly → solve, errors last.
+    REQUIRE(stages.size() >= 4);
+    CHECK(stages.front() == FitStage::Hierarchy);
+    CHECK(stages.back() == FitStage::Errors);
+    CHECK(std::find(stages.begin(), stages.end(), FitStage::Constraints) != stages.end());
+    CHECK(std::find(stages.begin(), stages.end(), FitStage::Assembly) != stages.end());
+    CHECK(std::find(stages.begin(), stages.end(), FitStage::Solve) != stages.end());
+    CHECK(std::string(fitStageName(FitStage::Solve)) == "solve");
+    CHECK(std::string(offSurfaceSideName(r.report.offSurfaceSide)) == "outside");
+    CHECK_THROWS_AS(
+        fit(Device::reference(), cloud, o, [](const FitProgress& p) { return p.stage != FitStage::Assembly; }),
+        Cancelled);
   }
 }
