@@ -1,21 +1,10 @@
-// The one stopwatch of the CLI commands (stage times in their JSON output and progress lines).
+// The CLI's stopwatch is the library's (duplexfit/timer.hpp).
 #pragma once
 
-#include <chrono>
+#include "duplexfit/timer.hpp"
 
 namespace duplexfit::cli {
 
-/// Seconds since construction (or the last restart()).
-class Timer {
- public:
-  Timer() : start_(std::chrono::steady_clock::now()) {}
-  void restart() { start_ = std::chrono::steady_clock::now(); }
-  double seconds() const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  }
-
- private:
-  std::chrono::steady_clock::time_point start_;
-};
+using duplexfit::Timer;
 
 }  // namespace duplexfit::cli

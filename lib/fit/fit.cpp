@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/timer.hpp"
 #include "duplexfit/wendland.hpp"
 #include "duplexfit/neighbors.hpp"
 #include "duplexfit/winding.hpp"
@@ -25,7 +26,6 @@ namespace duplexfit {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 void report(const FitProgressCallback& progress, FitProgress event) {
   if (progress && !progress(event)) throw Cancelled(std::string("fit cancelled during ") + fitStageName(event.stage));
@@ -138,7 +138,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   rep.sigma0 = sigma0 / norm.scale;
   rep.sigma1 = sigma1 / norm.scale;
   rep.levels = levels;
-  rep.secondsHierarchy = since(t);
+  rep.secondsHierarchy = secondsSince(t);
 
   // Sign anchors: the winding number of the input cloud (outward normals) and an index for distances.
   std::unique_ptr<WindingNumber> winding;
@@ -152,7 +152,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     winding = std::make_unique<WindingNumber>(u, outwardNormals);
     inputIndex = std::make_unique<NeighborIndex>(u);
     spacing = medianSpacing(winding->areas());
-    rep.secondsWinding = since(t);
+    rep.secondsWinding = secondsSince(t);
   }
   double maxOffset = 0.0;
   for (const double d : deltas) maxOffset = std::max(maxOffset, std::abs(d));
@@ -172,7 +172,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
                                                                  superset->candidateRow)
                                       : assembleWendland(centres, sigma, lambda);
     lr.nonZeros = a.nonZeros();
-    lr.secondsAssembly = since(t0);
+    lr.secondsAssembly = secondsSince(t0);
 
     t0 = Clock::now();
     report(progress, {FitStage::Solve, k, levels, 0, 0.0, std::to_string(lr.nonZeros) + " non-zeros"});
@@ -193,7 +193,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     }
     lr.solve = solveCg(m, db, x, so, pre.get());
     if (lr.solve.reason == StopReason::Cancelled) throw Cancelled("fit cancelled during the level " + std::to_string(k) + " solve");
-    lr.secondsSolve = since(t0);
+    lr.secondsSolve = secondsSince(t0);
     lr.weights = x.download();
     return a;
   };
@@ -275,7 +275,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     lr.offSurfaceKept = c.offSurfaceKept;
     lr.mergedCentres = c.merged;
     lr.centres = static_cast<std::size_t>(c.centres.rows());
-    lr.secondsConstraints = since(t);
+    lr.secondsConstraints = secondsSince(t);
 
     // Right-hand side b = t − f_{k−1}(C) (§5), f_0 = −1.
     t = Clock::now();
@@ -284,7 +284,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     if (!fitted.empty()) fPrev = evaluator->evaluateNormalized(c.centres);
     const Eigen::VectorXd b = c.targets - fPrev;
     lr.maxResidualBefore = (b.size() > 0 ? b.cwiseAbs().maxCoeff() : 0.0) / norm.scale;
-    lr.secondsResidual = since(t);
+    lr.secondsResidual = secondsSince(t);
     if (k >= 2 && options.fitTolerance > 0.0 && lr.maxResidualBefore * norm.scale <= options.fitTolerance) {
       rep.stoppedEarly = true;
       rep.levelReports.push_back(lr);
@@ -426,7 +426,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
         finestIsInput = false;  // E_0 is evaluated again below, with the corrected field
       }
     }
-    cr.seconds = since(t);
+    cr.seconds = secondsSince(t);
   }
   ImplicitField field(norm, -1.0, std::move(fitted), rep.offsets, bounds);
   if (rep.correction.applied) {
@@ -454,7 +454,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     rep.e0 = std::max(rep.e0, f0.cwiseAbs().maxCoeff());
   }
   if (rep.eDelta.size() != deltas.size()) rep.eDelta.assign(deltas.size(), 0.0);  // stopped early
-  rep.secondsTotal = since(start);
+  rep.secondsTotal = secondsSince(start);
   return FitResult{std::move(field), std::move(rep), std::move(evaluator)};
 }
 

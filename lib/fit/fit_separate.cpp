@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/timer.hpp"
 #include "duplexfit/fit.hpp"
 #include "fit/constraints.hpp"
 
@@ -61,7 +62,7 @@ SeparateFitResult fitSeparate(const Device& device, const PointSet& points, cons
     out.offsetDeltas.push_back(world);
     out.offsetPoints.push_back(cloud.size());
   }
-  out.secondsTotal = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  out.secondsTotal = secondsSince(start);
   return out;
 }
 

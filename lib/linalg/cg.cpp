@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/timer.hpp"
 #include "linalg/ops.hpp"
 #include "linalg/storage.hpp"
 
@@ -71,7 +72,7 @@ SolveStats solveCg(const DeviceCsr& a, const DeviceVector& b, DeviceVector& x, c
   auto finish = [&](StopReason reason) {
     stats.reason = reason;
     stats.converged = reason == StopReason::Converged || reason == StopReason::ZeroRhs;
-    stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    stats.seconds = secondsSince(start);
     return stats;
   };
   if (n == 0) return finish(StopReason::ZeroRhs);

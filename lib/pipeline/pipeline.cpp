@@ -11,13 +11,13 @@
 #include <utility>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/timer.hpp"
 
 namespace duplexfit {
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 /// The Interrupter (or none) behind the per-operation callbacks, with the stage bookkeeping.
 class Progress {
@@ -209,7 +209,7 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
     }
   }
   const SurfaceResult& first = extracted.front();
-  report.secondsPolygonize = since(t);
+  report.secondsPolygonize = secondsSince(t);
   for (const SurfaceResult& e : extracted) {
     if (e.touchesBoundary) progress.log("warning: a level set still reaches the grid boundary; its mesh is open there");
   }
@@ -238,7 +238,7 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
     s.mesh = std::move(meshes[i]);
     result.surfaces.push_back(std::move(s));
   }
-  report.secondsTotal = since(start);
+  report.secondsTotal = secondsSince(start);
   return result;
 }
 
@@ -265,7 +265,7 @@ PipelineResult runPipeline(const Device& device, const std::string& inputPath, c
   PointReadOptions readOptions;
   readOptions.requireNormals = !options.estimateNormals;
   PointCloudFile file = readPointCloudWithReport(inputPath, readOptions);
-  const double readSeconds = since(start);
+  const double readSeconds = secondsSince(start);
   progress.end();
   return runOnPoints(device, std::move(file), inputPath, readSeconds, options, progress, start);
 }
@@ -305,7 +305,7 @@ void writePipelineOutputs(const PipelineResult& result, StagedFolder& folder, co
   const std::vector<std::string> fieldNames = pipelineFieldNames(result);
   for (std::size_t i = 0; i < fieldNames.size(); ++i) result.fields[i].save(folder.path(fieldNames[i]));
   std::ostringstream json;
-  writePipelineReport(json, result, meshFormat, since(t));
+  writePipelineReport(json, result, meshFormat, secondsSince(t));
   {
     AtomicFile f(folder.path("report.json"));
     f.write(json.str());

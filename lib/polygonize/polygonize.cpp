@@ -1,6 +1,7 @@
 // GridSpec helpers and the polygonize() pipeline: validate, sample (sampling.cpp), extract
 // (extract.cpp), with timings and progress/cancellation.
 #include "duplexfit/polygonize.hpp"
+#include "duplexfit/timer.hpp"
 
 #include <chrono>
 #include <cmath>
@@ -118,7 +119,7 @@ PolygonizeResult polygonize(const FieldSampler& sampler, const GridSpec& grid,
                             const PolygonizeProgress& progress) {
   const auto start = std::chrono::steady_clock::now();
   const auto since = [](std::chrono::steady_clock::time_point t) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+    return secondsSince(t);
   };
   if (!sampler) throw InvalidArgument("polygonize: the sampler is empty");
   grid.validate();

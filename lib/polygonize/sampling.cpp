@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/timer.hpp"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -82,7 +83,7 @@ class BatchSampler {
     const auto start = std::chrono::steady_clock::now();
     sampler_(queries_, values_);
     stats_.samplerSeconds +=
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        secondsSince(start);
     ++stats_.samplerCalls;
     if (values_.size() != m) {
       throw InvalidArgument("polygonize: the sampler returned " + std::to_string(values_.size()) +

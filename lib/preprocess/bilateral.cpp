@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/timer.hpp"
 #include "duplexfit/fit.hpp"
 #include "duplexfit/neighbors.hpp"
 #include "duplexfit/preprocess.hpp"
@@ -21,7 +22,6 @@ namespace duplexfit {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 /// Queries per radius search: bounds the memory of the unsorted hit lists (about 60 hits × 12 bytes each).
 constexpr Eigen::Index kQueryChunk = 131072;
@@ -134,7 +134,7 @@ PointSet bilateralFilter(const PointSet& points, const BilateralOptions& options
       rep.radius = options.radius > 0.0 ? options.radius : 2.0 * rep.sigmaSpatial;
     }
     neighborCsr(index, cur, rep.radius, offsets, nbr);
-    rep.neighborSeconds += since(t);
+    rep.neighborSeconds += secondsSince(t);
 
     t = Clock::now();
     std::copy(cur.data(), cur.data() + 3 * n, pos.begin());
@@ -143,7 +143,7 @@ PointSet bilateralFilter(const PointSet& points, const BilateralOptions& options
     const std::vector<double> disp = detail::bilateralPass(device, options.precision, pos, nrm, area, offsets, nbr, a, b);
     for (std::size_t i = 0; i < 3 * n; ++i) shift.data()[i] += disp[i];
     cur = centred + shift;
-    rep.filterSeconds += since(t);
+    rep.filterSeconds += secondsSince(t);
   }
   rep.meanNeighbors = static_cast<double>(nbr.size()) / static_cast<double>(n);
   for (std::size_t i = 0; i < n; ++i) rep.isolated += offsets[i + 1] - offsets[i] <= 1 ? 1 : 0;
@@ -175,7 +175,7 @@ PointSet bilateralFilter(const PointSet& points, const BilateralOptions& options
     rep.normalsReestimated = true;
   }
   PointSet result(std::move(out), std::move(normals));
-  rep.seconds = since(start);
+  rep.seconds = secondsSince(start);
   if (report != nullptr) *report = rep;
   return result;
 }

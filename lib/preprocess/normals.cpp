@@ -17,6 +17,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/timer.hpp"
 #include "duplexfit/neighbors.hpp"
 #include "duplexfit/preprocess.hpp"
 #include "preprocess/normals_internal.hpp"
@@ -28,7 +29,6 @@ namespace duplexfit {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 /// Components whose |enclosed-volume ratio| is below this have no decidable outward side. The ratio is
 /// Σ a_i (p_i − c)·n_i / Σ a_i ‖p_i − c‖: 1 for a sphere, 1.5 r/R for a torus, ≈ 3t/L for a closed plate of
@@ -116,7 +116,7 @@ PcaNormals pcaNormals(const Device& device, Precision precision, const Points& p
     for (std::size_t e = 0; e < k1; ++e) pcaNbr[i * k1 + e] = static_cast<std::uint32_t>(knn.indices[b + e]);
     out.kthDistance[i] = knn.distances[b + k1 - 1];
   }
-  out.neighborSeconds = since(t);
+  out.neighborSeconds = secondsSince(t);
 
   t = Clock::now();
   const Eigen::RowVector3d centre = 0.5 * (points.colwise().minCoeff() + points.colwise().maxCoeff());
@@ -145,7 +145,7 @@ PcaNormals pcaNormals(const Device& device, Precision precision, const Points& p
   }
   out.degenerate = degenerate;
   out.nonPlanar = nonPlanar;
-  out.pcaSeconds = since(t);
+  out.pcaSeconds = secondsSince(t);
   return out;
 }
 
@@ -449,7 +449,7 @@ PointSet estimateNormals(const Points& points, const NormalOptions& options, con
     const auto ii = static_cast<Eigen::Index>(i);
     if (nrm.row(ii).dot(raw.row(ii)) < 0.0) ++flipped;
   }
-  const double orientSeconds = since(t);
+  const double orientSeconds = secondsSince(t);
 
   Points outNormals(static_cast<Eigen::Index>(n), 3);
   for (std::size_t i = 0; i < n; ++i) outNormals.row(static_cast<Eigen::Index>(i)) = nrm.row(rep[i]);
@@ -475,7 +475,7 @@ PointSet estimateNormals(const Points& points, const NormalOptions& options, con
     r.neighborSeconds = pca.neighborSeconds;
     r.pcaSeconds = pca.pcaSeconds;
     r.orientSeconds = orientSeconds;
-    r.seconds = since(start);
+    r.seconds = secondsSince(start);
   }
   return result;
 }

@@ -3,6 +3,7 @@
 // contour lines of the 0-level and the offset levels placed by the sampled values, and dots for the input
 // points near the plane.
 #include "duplexfit/section.hpp"
+#include "duplexfit/timer.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -365,7 +366,7 @@ SectionResult renderSection(const FieldEvaluator& evaluator, const ImplicitField
       }
     }
   }
-  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.seconds = secondsSince(start);
   return result;
 }
 
@@ -374,7 +375,7 @@ SectionResult renderSection(const Device& device, const ImplicitField& field, co
   validateImpl(field, plane, options);  // before building the evaluator
   const auto start = std::chrono::steady_clock::now();
   const FieldEvaluator evaluator(device, field, options.precision);
-  const double setup = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double setup = secondsSince(start);
   SectionResult result = renderSection(evaluator, field, plane, options);
   result.seconds += setup;
   return result;

@@ -13,6 +13,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/timer.hpp"
 #include "duplexfit/slice.hpp"
 
 namespace duplexfit {
@@ -665,7 +666,7 @@ SliceResult Slicer::run(const SliceProgressCallback& progress) const {
     }
     z += t;
   }
-  r.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  r.seconds = secondsSince(t0);
   return r;
 }
 

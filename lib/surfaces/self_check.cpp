@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/timer.hpp"
 #include "duplexfit/measure.hpp"
 #include "duplexfit/neighbors.hpp"
 #include "duplexfit/self_check.hpp"
@@ -319,7 +320,7 @@ SelfCheckReport selfCheck(const std::vector<Mesh>& meshes, const std::vector<dou
     }
   }
   for (const ComponentIssue& issue : r.issues) ++r.surfaces[static_cast<std::size_t>(issue.surface)].issues;
-  r.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  r.seconds = secondsSince(start);
   return r;
 }
 
@@ -335,7 +336,7 @@ SelfCheckReport cleanAndSelfCheck(std::vector<Mesh>& meshes, const std::vector<d
   }
   SelfCheckReport r = selfCheck(meshes, isos, inputPoints, options);
   for (std::size_t i = 0; i < r.surfaces.size(); ++i) r.surfaces[i].dropped = dropped[i];
-  r.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  r.seconds = secondsSince(start);
   return r;
 }
 
