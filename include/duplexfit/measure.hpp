@@ -32,11 +32,11 @@ struct MeshValidation {
 };
 
 /// Checks a mesh before any measurement: at least one face, every index in [0, #V), every vertex
-/// finite. Degenerate triangles are counted, not rejected. A triangle has zero area when
+/// finite with |coordinate| ≤ 1e64 (beyond, areas and squared distances overflow). Degenerate triangles are counted, not rejected. A triangle has zero area when
 /// |(b − a) × (c − a)| ≤ 1e-12 · (its longest edge)² (this includes coincident corners).
 /// @param source the name used in messages (typically the file name)
 /// @throws InvalidArgument "<source>: mesh has no faces", "<source>: face 12: index 99 out of range
-///         (mesh has 40 vertices)", "<source>: vertex 7: coordinate y is NaN" (or "is infinite").
+///         (mesh has 40 vertices)", "<source>: vertex 7: coordinate y is NaN" (or "is infinite", or "= 1e+200 is too large ...").
 MeshValidation validateMesh(const Mesh& mesh, const std::string& source = "mesh");
 
 // ---------------------------------------------------------------------------------------------
@@ -87,6 +87,10 @@ class TriangleBvh {
   /// Appends to `out` the faces whose bounding boxes intersect the box [lo, hi] (closed boxes).
   void overlapping(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
                    std::vector<std::int64_t>& out) const;
+  /// overlapping(lo, hi, out), appending at most `limit` faces: returns false when it stopped there with
+  /// faces left unvisited (the faces appended are then the first `limit` in tree order, deterministic).
+  bool overlapping(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, std::vector<std::int64_t>& out,
+                   std::size_t limit) const;
 
   std::size_t faceCount() const noexcept;
   std::size_t nodeCount() const noexcept;
@@ -200,6 +204,12 @@ std::vector<OffsetReport::Component> offsetComponents(const Mesh& offset, const 
 struct CheckOptions {
   bool selfIntersections = true;  ///< look for intersecting triangle pairs (the slowest check)
   std::size_t listedPairs = 20;   ///< how many intersecting pairs to list in MeshCheck::pairs
+  /// Work bound of the self-intersection test, in candidate pairs (faces with overlapping boxes): each
+  /// face examines at most max(1024, candidatePairBudget / #F) candidates, so time and memory stay linear
+  /// in #F even when thousands of faces overlap (duplicated triangles, a fanned polygon with repeated
+  /// corners). Meshes without such clusters never reach it; when a face does, the count is a lower bound
+  /// (MeshCheck::selfIntersectionsComplete is false).
+  std::size_t candidatePairBudget = 400'000'000;
 };
 
 /// The facts checkMesh reports.
@@ -221,11 +231,20 @@ struct MeshCheck {
   /// one vertex whose intersection extends beyond it; pairs sharing an edge that are coplanar and
   /// fold over each other; duplicate faces. Vertices at identical positions count as shared.
   /// Degenerate (zero-area) triangles are skipped.
+  /// Counted exactly, without storing the pairs (memory stays linear in #F); a lower bound ("at least")
+  /// when selfIntersectionsComplete is false.
   std::size_t selfIntersections = 0;
-  std::vector<std::pair<std::int64_t, std::int64_t>> pairs;  ///< the first listedPairs pairs, sorted
-  /// closed, manifold, oriented, outward and free of self-intersections (when checked)
+  /// Every candidate pair was examined (see CheckOptions::candidatePairBudget); false when not checked.
+  bool selfIntersectionsComplete = false;
+  /// The first listedPairs intersecting pairs (smallest first) among those examined, sorted.
+  std::vector<std::pair<std::int64_t, std::int64_t>> pairs;
+  /// No non-degenerate face: nothing to be valid (watertight is then false too).
+  bool empty() const noexcept { return topology.faces == topology.degenerateFaces; }
+  /// Not empty, closed, manifold, oriented, outward and free of self-intersections (when checked; a check
+  /// that stopped at the work bound without finding any does not count as free of them).
   bool valid() const noexcept {
-    return watertight && manifold && oriented && outward && selfIntersections == 0;
+    return !empty() && watertight && manifold && oriented && outward && selfIntersections == 0 &&
+           (!selfIntersectionsChecked || selfIntersectionsComplete);
   }
 };
 

@@ -31,7 +31,9 @@ struct MeshTopology {
   std::size_t degenerateFaces = 0;       ///< faces with a repeated vertex index
   std::size_t components = 0;            ///< connected components of the face graph (via shared edges)
   long long eulerCharacteristic = 0;     ///< V − E + F over the referenced vertices
-  bool watertight() const noexcept { return boundaryEdges == 0 && nonManifoldEdges == 0; }
+  /// Closed: at least one edge (an empty mesh, or one of only degenerate faces, is not watertight), no
+  /// boundary and no non-manifold edges.
+  bool watertight() const noexcept { return edges > 0 && boundaryEdges == 0 && nonManifoldEdges == 0; }
   bool manifold() const noexcept { return nonManifoldEdges == 0 && nonManifoldVertices == 0; }
   bool oriented() const noexcept { return inconsistentEdges == 0; }
 };

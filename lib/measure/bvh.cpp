@@ -12,6 +12,7 @@
 #include "duplexfit/error.hpp"
 #include "measure/bvh_data.hpp"
 #include "measure/geometry.hpp"
+#include "measure/parallel_errors.hpp"
 
 namespace duplexfit {
 
@@ -181,6 +182,7 @@ struct Builder {
   std::uint32_t* order;
   Node* nodes;
   const NodeCounts* counts;
+  measure_detail::ParallelErrors* errors;  // of the parallel build's tasks
 
   /// The node's coin: axis = normalised sum of the (area-weighted) triangle normals, centre = box
   /// centre, then the largest axial and radial offsets of the corners (slightly inflated).
@@ -263,9 +265,9 @@ struct Builder {
     n.count = 0;
     if (count >= kParallelBuild) {
 #pragma omp task firstprivate(left, begin, mid)
-      build(left, begin, mid);
+      errors->run([&] { build(left, begin, mid); });
 #pragma omp task firstprivate(right, mid, end)
-      build(right, mid, end);
+      errors->run([&] { build(right, mid, end); });
 #pragma omp taskwait
     } else {
       build(left, begin, mid);
@@ -313,11 +315,13 @@ TriangleBvh::TriangleBvh(const Mesh& mesh) {
   const NodeCounts counts(nf);
   data->nodes.resize(counts(nf));
   data->depth = counts.depth(nf);
-  Builder builder{corners.data(), centroids.data(), order.data(), data->nodes.data(), &counts};
+  measure_detail::ParallelErrors errors;
+  Builder builder{corners.data(), centroids.data(), order.data(), data->nodes.data(), &counts, &errors};
   if (nf >= kParallelBuild) {
-#pragma omp parallel default(none) shared(builder, nf)
+#pragma omp parallel default(none) shared(builder, nf, errors)
 #pragma omp single
-    builder.build(0, 0, nf);
+    errors.run([&] { builder.build(0, 0, nf); });
+    errors.rethrow();
   } else {
     builder.build(0, 0, nf);
   }
@@ -435,12 +439,16 @@ std::vector<ClosestPoint> TriangleBvh::closest(const Points& queries) const {
   const Data& d = *data_;
   const double* q = queries.data();
   const auto n = static_cast<long long>(queries.rows());
-#pragma omp parallel default(none) shared(out, d, q, n)
+  measure_detail::ParallelErrors errors;
+#pragma omp parallel default(none) shared(out, d, q, n, errors)
   {
     std::size_t hint = kNoHint;
 #pragma omp for schedule(dynamic, 256)
-    for (long long i = 0; i < n; ++i) out[static_cast<std::size_t>(i)] = query(d, q + 3 * i, hint);
+    for (long long i = 0; i < n; ++i) {
+      errors.run([&] { out[static_cast<std::size_t>(i)] = query(d, q + 3 * i, hint); });
+    }
   }
+  errors.rethrow();
   return out;
 }
 
@@ -449,18 +457,28 @@ Eigen::VectorXd TriangleBvh::distances(const Points& queries) const {
   const Data& d = *data_;
   const double* q = queries.data();
   const auto n = static_cast<long long>(queries.rows());
-#pragma omp parallel default(none) shared(out, d, q, n)
+  measure_detail::ParallelErrors errors;
+#pragma omp parallel default(none) shared(out, d, q, n, errors)
   {
     std::size_t hint = kNoHint;
 #pragma omp for schedule(dynamic, 256)
-    for (long long i = 0; i < n; ++i) out[static_cast<Eigen::Index>(i)] = query(d, q + 3 * i, hint).distance;
+    for (long long i = 0; i < n; ++i) {
+      errors.run([&] { out[static_cast<Eigen::Index>(i)] = query(d, q + 3 * i, hint).distance; });
+    }
   }
+  errors.rethrow();
   return out;
 }
 
 void TriangleBvh::overlapping(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
                               std::vector<std::int64_t>& out) const {
+  overlapping(lo, hi, out, std::numeric_limits<std::size_t>::max());
+}
+
+bool TriangleBvh::overlapping(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, std::vector<std::int64_t>& out,
+                              std::size_t limit) const {
   const Data& d = *data_;
+  std::size_t room = limit;
   std::uint32_t stack[96];
   int sp = 0;
   stack[sp++] = 0;
@@ -481,9 +499,13 @@ void TriangleBvh::overlapping(const Eigen::Vector3d& lo, const Eigen::Vector3d& 
       for (int c = 0; c < 3; ++c) {
         miss = miss || std::min({t[c], t[3 + c], t[6 + c]}) > hi[c] || std::max({t[c], t[3 + c], t[6 + c]}) < lo[c];
       }
-      if (!miss) out.push_back(d.faceOf[k]);
+      if (miss) continue;
+      if (room == 0) return false;
+      out.push_back(d.faceOf[k]);
+      --room;
     }
   }
+  return true;
 }
 
 std::size_t TriangleBvh::faceCount() const noexcept { return data_->faceOf.size(); }

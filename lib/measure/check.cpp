@@ -5,6 +5,8 @@
 // for coplanar triangles); one → whether the triangles extend beyond the shared vertex in a common
 // direction; an edge → coplanar fold-over; all three → a duplicate face.
 #include <algorithm>
+#include <cstddef>
+#include <limits>
 #include <cmath>
 #include <numeric>
 #include <string>
@@ -13,6 +15,7 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/measure.hpp"
 #include "measure/geometry.hpp"
+#include "measure/parallel_errors.hpp"
 
 namespace duplexfit {
 
@@ -306,7 +309,7 @@ MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
   r.area = surfaceArea(mesh);
   r.outward = r.signedVolume > 0.0;
   r.boundaryLoops = countBoundaryLoops(mesh);
-  if (r.manifold && r.oriented) {
+  if (r.manifold && r.oriented && !r.empty()) {
     const long long twice = 2 * static_cast<long long>(r.topology.components) - r.topology.eulerCharacteristic -
                             static_cast<long long>(r.boundaryLoops);
     if (twice >= 0 && twice % 2 == 0) {
@@ -342,40 +345,82 @@ MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
       for (double& x : t.n) x /= len;
     }
   }
-  const TriangleBvh tree(mesh);
-  std::vector<std::pair<std::int64_t, std::int64_t>> found;
+  // The tree holds only the triangles tested (degenerate ones are skipped), so that the per-face bound
+  // below is spent on real candidates.
+  std::vector<std::int64_t> tested;
+  for (std::size_t i = 0; i < nf; ++i) {
+    if (!tris[i].skip) tested.push_back(static_cast<std::int64_t>(i));
+  }
+  if (tested.empty()) {
+    r.selfIntersectionsComplete = true;
+    return r;
+  }
+  Mesh testedMesh;
+  testedMesh.vertices = mesh.vertices;
+  testedMesh.faces.resize(static_cast<Eigen::Index>(tested.size()), 3);
+  for (std::size_t k = 0; k < tested.size(); ++k) {
+    testedMesh.faces.row(static_cast<Eigen::Index>(k)) = mesh.faces.row(static_cast<Eigen::Index>(tested[k]));
+  }
+  const TriangleBvh tree(testedMesh);
+  // Each face examines at most `perFace` candidates (a deterministic prefix in tree order), so the work is
+  // at most max(1024·#F, budget) pair tests. Pairs are counted, not stored: each thread keeps only its
+  // smallest `listed` pairs for the examples.
+  const std::size_t perFace = std::max<std::size_t>(1024, options.candidatePairBudget / tested.size());
+  const std::size_t listed = options.listedPairs;
+  using Pair = std::pair<std::int64_t, std::int64_t>;
+  std::vector<Pair> examples;
+  std::size_t count = 0;
+  bool complete = true;
+  measure_detail::ParallelErrors errors;
   const auto nfl = static_cast<long long>(nf);
-#pragma omp parallel default(none) shared(tris, tree, found, nfl)
+#pragma omp parallel default(none) shared(tris, tested, tree, examples, nfl, perFace, listed, errors) \
+    reduction(+ : count) reduction(&& : complete)
   {
-    std::vector<std::pair<std::int64_t, std::int64_t>> mine;
+    // Exceptions (bad_alloc) are caught per iteration: one leaving the loop would skip its barrier.
+    std::vector<Pair> mine;
     std::vector<std::int64_t> candidates;
+    // Keeps the `listed` smallest of `mine` once it has grown to twice that.
+    auto trim = [&mine, listed] {
+      if (mine.size() <= listed) return;
+      std::nth_element(mine.begin(), mine.begin() + static_cast<std::ptrdiff_t>(listed), mine.end());
+      mine.resize(listed);
+    };
 #pragma omp for schedule(dynamic, 512)
     for (long long ii = 0; ii < nfl; ++ii) {
       const Tri& s = tris[static_cast<std::size_t>(ii)];
       if (s.skip) continue;
-      Eigen::Vector3d lo, hi;
-      for (int c = 0; c < 3; ++c) {
-        lo[c] = std::min({s.p[c], s.p[3 + c], s.p[6 + c]}) - s.tol;
-        hi[c] = std::max({s.p[c], s.p[3 + c], s.p[6 + c]}) + s.tol;
-      }
-      candidates.clear();
-      tree.overlapping(lo, hi, candidates);
-      for (const std::int64_t j : candidates) {
-        if (j == ii) continue;
-        const Tri& t = tris[static_cast<std::size_t>(j)];
-        if (t.skip) continue;
-        // The triangle with the larger tolerance (its box query is the wider one) owns the pair.
-        if (t.tol > s.tol || (t.tol == s.tol && j < ii)) continue;
-        if (pairIntersect(s, t, s.tol)) mine.emplace_back(std::min<std::int64_t>(ii, j), std::max<std::int64_t>(ii, j));
-      }
+      errors.run([&] {
+        Eigen::Vector3d lo, hi;
+        for (int c = 0; c < 3; ++c) {
+          lo[c] = std::min({s.p[c], s.p[3 + c], s.p[6 + c]}) - s.tol;
+          hi[c] = std::max({s.p[c], s.p[3 + c], s.p[6 + c]}) + s.tol;
+        }
+        candidates.clear();
+        if (!tree.overlapping(lo, hi, candidates, perFace)) complete = false;
+        for (const std::int64_t k : candidates) {
+          const std::int64_t j = tested[static_cast<std::size_t>(k)];
+          if (j == ii) continue;
+          const Tri& t = tris[static_cast<std::size_t>(j)];
+          // The triangle with the larger tolerance (its box query is the wider one) owns the pair.
+          if (t.tol > s.tol || (t.tol == s.tol && j < ii)) continue;
+          if (!pairIntersect(s, t, s.tol)) continue;
+          ++count;
+          if (listed == 0) continue;
+          mine.emplace_back(std::min<std::int64_t>(ii, j), std::max<std::int64_t>(ii, j));
+          if (mine.size() / 2 >= listed) trim();
+        }
+      });
     }
+    errors.run(trim);
 #pragma omp critical(duplexfit_check_pairs)
-    found.insert(found.end(), mine.begin(), mine.end());
+    errors.run([&] { examples.insert(examples.end(), mine.begin(), mine.end()); });
   }
-  std::sort(found.begin(), found.end());
-  r.selfIntersections = found.size();
-  found.resize(std::min(found.size(), options.listedPairs));
-  r.pairs = std::move(found);
+  errors.rethrow();
+  std::sort(examples.begin(), examples.end());
+  examples.resize(std::min(examples.size(), listed));
+  r.selfIntersections = count;
+  r.selfIntersectionsComplete = complete;
+  r.pairs = std::move(examples);
   return r;
 }
 

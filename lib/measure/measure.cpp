@@ -3,17 +3,24 @@
 // with the inside/outside decision by angle-weighted pseudo-normals (Bærentzen & Aanæs 2005).
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <limits>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/measure.hpp"
 #include "measure/geometry.hpp"
+#include "measure/parallel_errors.hpp"
 
 namespace duplexfit {
 
 namespace {
+
+/// validateMesh's bound on |coordinate|: the measurements take products of up to four coordinate
+/// differences (squared areas), which stay finite below it.
+constexpr double kMaxCoordinate = 1e64;
 
 const char* axisName(int k) { return k == 0 ? "x" : (k == 1 ? "y" : "z"); }
 
@@ -199,6 +206,13 @@ MeshValidation validateMesh(const Mesh& mesh, const std::string& source) {
         throw InvalidArgument(source + ": vertex " + std::to_string(i) + ": coordinate " + axisName(k) +
                               (std::isnan(x) ? " is NaN" : " is infinite"));
       }
+      if (std::abs(x) > kMaxCoordinate) {
+        std::ostringstream value;
+        value << std::setprecision(6) << x;
+        throw InvalidArgument(source + ": vertex " + std::to_string(i) + ": coordinate " + axisName(k) + " = " +
+                              value.str() + " is too large (|coordinate| > 1e64: areas and squared distances "
+                              "would overflow)");
+      }
     }
   }
   const std::int32_t* f = mesh.faces.data();
@@ -240,7 +254,14 @@ MeshSamples sampleMesh(const Mesh& mesh, const MeasureOptions& options) {
     area[i] = 0.5 * std::sqrt(geom::norm2(n));
   }
   double total = 0.0;
-  for (const double a : area) total += a;
+  for (std::size_t i = 0; i < nf; ++i) {
+    // validateMesh bounds the coordinates, so this cannot happen; it guards the casts below all the same.
+    if (!std::isfinite(area[i])) {
+      throw InvalidArgument("sampling: face " + std::to_string(i) + " has a non-finite area (coordinates too large)");
+    }
+    total += area[i];
+  }
+  if (!std::isfinite(total)) throw InvalidArgument("sampling: the total area overflows (coordinates too large)");
   const double wanted = std::ceil(options.samplesPerFace * static_cast<double>(nf));
   if (wanted > 2e9) {
     throw InvalidArgument("sampling: " + std::to_string(options.samplesPerFace) + " samples per face on " +
@@ -250,7 +271,9 @@ MeshSamples sampleMesh(const Mesh& mesh, const MeasureOptions& options) {
   std::vector<std::size_t> offset(nf + 1, 0);
   for (std::size_t i = 0; i < nf; ++i) {
     const double share = total > 0.0 ? area[i] / total : 1.0 / static_cast<double>(nf);
-    offset[i + 1] = offset[i] + static_cast<std::size_t>(std::floor(wanted * share + uniform(options.seed, i, 0)));
+    // share ∈ [0, 1], so the count lies in [0, wanted + 1) ⊂ [0, 2e9 + 1): the cast is defined.
+    const double count = std::floor(std::min(wanted * share + uniform(options.seed, i, 0), wanted + 1.0));
+    offset[i + 1] = offset[i] + static_cast<std::size_t>(std::max(count, 0.0));
   }
 
   std::vector<std::size_t> vertexList;
@@ -273,21 +296,25 @@ MeshSamples sampleMesh(const Mesh& mesh, const MeasureOptions& options) {
   std::int64_t* outFace = s.faces.data() + s.vertexSamples;
   const auto nfl = static_cast<long long>(nf);
   const std::uint64_t seed = options.seed;
-#pragma omp parallel for schedule(dynamic, 1024) default(none) shared(mesh, f, offset, out, outFace, nfl, seed)
+  measure_detail::ParallelErrors errors;
+#pragma omp parallel for schedule(dynamic, 1024) default(none) shared(mesh, f, offset, out, outFace, nfl, seed, errors)
   for (long long ii = 0; ii < nfl; ++ii) {
-    const auto i = static_cast<std::size_t>(ii);
-    const double* a = vertexPtr(mesh, f[3 * i]);
-    const double* b = vertexPtr(mesh, f[3 * i + 1]);
-    const double* c = vertexPtr(mesh, f[3 * i + 2]);
-    for (std::size_t j = offset[i]; j < offset[i + 1]; ++j) {
-      const std::uint64_t local = j - offset[i];
-      const double s1 = std::sqrt(uniform(seed, i, 2 * local + 1));
-      const double r2 = uniform(seed, i, 2 * local + 2);
-      const double wa = 1.0 - s1, wb = s1 * (1.0 - r2), wc = s1 * r2;
-      for (std::size_t k = 0; k < 3; ++k) out[3 * j + k] = wa * a[k] + wb * b[k] + wc * c[k];
-      outFace[j] = ii;
-    }
+    errors.run([&] {
+      const auto i = static_cast<std::size_t>(ii);
+      const double* a = vertexPtr(mesh, f[3 * i]);
+      const double* b = vertexPtr(mesh, f[3 * i + 1]);
+      const double* c = vertexPtr(mesh, f[3 * i + 2]);
+      for (std::size_t j = offset[i]; j < offset[i + 1]; ++j) {
+        const std::uint64_t local = j - offset[i];
+        const double s1 = std::sqrt(uniform(seed, i, 2 * local + 1));
+        const double r2 = uniform(seed, i, 2 * local + 2);
+        const double wa = 1.0 - s1, wb = s1 * (1.0 - r2), wc = s1 * r2;
+        for (std::size_t k = 0; k < 3; ++k) out[3 * j + k] = wa * a[k] + wb * b[k] + wc * c[k];
+        outFace[j] = ii;
+      }
+    });
   }
+  errors.rethrow();
   return s;
 }
 
@@ -399,19 +426,23 @@ OffsetReport measureOffset(const Mesh& offsetMesh, const Mesh& surface, double d
   const bool inward = delta > 0.0;
   long long wrong = 0;
   const double* q = samples.points.data();
-#pragma omp parallel reduction(+ : wrong) default(none) shared(tree, normals, q, n, dist, dev, absDelta, inward)
+  measure_detail::ParallelErrors errors;
+#pragma omp parallel reduction(+ : wrong) default(none) shared(tree, normals, q, n, dist, dev, absDelta, inward, errors)
   {
     std::int64_t hint = -1;  // consecutive samples are near each other (same face of O)
 #pragma omp for schedule(dynamic, 256)
     for (long long i = 0; i < n; ++i) {
-      const Eigen::Vector3d p(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
-      const ClosestPoint cp = tree.closest(p, hint);
-      const double side = (p - cp.point).dot(normals.at(cp));
-      if (inward ? side > 0.0 : side < 0.0) ++wrong;
-      dist[static_cast<std::size_t>(i)] = cp.distance;
-      dev[static_cast<std::size_t>(i)] = std::abs(cp.distance - absDelta);
+      errors.run([&] {
+        const Eigen::Vector3d p(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
+        const ClosestPoint cp = tree.closest(p, hint);
+        const double side = (p - cp.point).dot(normals.at(cp));
+        if (inward ? side > 0.0 : side < 0.0) ++wrong;
+        dist[static_cast<std::size_t>(i)] = cp.distance;
+        dev[static_cast<std::size_t>(i)] = std::abs(cp.distance - absDelta);
+      });
     }
   }
+  errors.rethrow();
   OffsetReport r;
   r.delta = delta;
   r.samples = static_cast<std::size_t>(n);

@@ -385,4 +385,31 @@ TEST_CASE("mesh io: the shared meshes read with the topology of meshes.json") {
   }
 }
 
+TEST_CASE("mesh io: an OBJ polygon of 349k corners fans into linear memory") {
+  // docs/reliability.md: the reported 0.7 MB file, one face cycling through 3 vertices.
+  const TempDir dir;
+  const std::string path = dir.file("polygon.obj");
+  std::string text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf";
+  const std::size_t corners = 349002;
+  for (std::size_t i = 0; i < corners; ++i) {
+    text += ' ';
+    text += static_cast<char>('1' + i % 3);
+  }
+  text += '\n';
+  writeBytes(path, text);
+  const Mesh m = readMesh(path);
+  REQUIRE(m.faces.rows() == static_cast<Eigen::Index>(corners - 2));
+  CHECK(m.vertices.rows() == 3);
+  CHECK(m.faces(0, 0) == 0);
+  CHECK(m.faces(0, 1) == 1);
+  CHECK(m.faces(0, 2) == 2);
+  CHECK(m.faces.minCoeff() == 0);
+  CHECK(m.faces.maxCoeff() == 2);
+  // One corner more than the 1 MiB line limit allows is a located error, not an allocation.
+  std::string tooLong = "f";
+  while (tooLong.size() <= (std::size_t{1} << 20)) tooLong += " 1";
+  writeBytes(path, "v 0 0 0\n" + tooLong + "\n");
+  checkIoError([&] { readMesh(path); }, path, {"line 2", "longer than 1 MiB"});
+}
+
 }  // TEST_SUITE
