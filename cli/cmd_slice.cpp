@@ -1,26 +1,18 @@
 // `duplexfit slice`: a saved field in, the layers of a 3D print out: slices.cli (Common Layer Interface,
 // ASCII), slices.svg, slices.json and optional PNG masks. Outputs are staged in a temporary folder inside
 // the output folder and moved into place only when everything succeeded.
+// The job (SliceJob, writeSliceOutputs) and slices.json are the library's (jobs.hpp).
 #include <cmath>
-#include <cstdio>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <limits>
-#include <sstream>
-
-#include <unistd.h>
-
-#include <nlohmann/json.hpp>
+#include <string>
 
 #include "commands.hpp"
 #include "options.hpp"
-#include "timer.hpp"
-#include "duplexfit/atomic_file.hpp"
-#include "duplexfit/error.hpp"
-#include "duplexfit/field.hpp"
-#include "duplexfit/image.hpp"
-#include "duplexfit/slice.hpp"
+#include "progress.hpp"
+#include "duplexfit/jobs.hpp"
 
 namespace duplexfit::cli {
 
@@ -42,25 +34,12 @@ const char* const kSliceHelp = R"(  slice FIELD        cut a saved field into pr
       --png-xy PX      also masks/layer_00001.png, ...: white inside, pixel size PX
       --device SPEC, --precision float|double, --refine-steps N, --quiet, --json (summary on stdout)
 )";
-
-namespace {
-
-namespace fs = std::filesystem;
-
-std::string layerName(std::size_t i, const char* ext) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "layer_%05zu.%s", i + 1, ext);
-  return buf;
-}
-
-}  // namespace
-
 int cmdSlice(int argc, char** argv) {
-  const Timer start;
   CLI::App app("cut a saved field into print layers", "slice");
   bool quiet = false, json = false, svgPerLayer = false, svg = false;
   DeviceOptions deviceOptions;
-  SliceOptions options;
+  SliceJobOptions job;
+  SliceOptions& options = job.slice;
   std::string input, mode = "zero", rule = "geometric", axis = "z", output = ".";
   // Numbers: NaN marks "not given".
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -85,16 +64,12 @@ int cmdSlice(int argc, char** argv) {
   addQuiet(app, quiet);
   addJson(app, json);
   if (parse(app, argc, argv)) return 0;
-  auto log = [quiet](const std::string& s) {
-    if (!quiet) std::cerr << s << std::endl;
-  };
   options.mode = parseSliceMode(mode);
   options.rule = parseCuspRule(rule);
   options.axis = parseAxis(axis);
   options.precision = deviceOptions.precision;
   const bool pngGiven = pixel != 0.0;
-  const fs::path outDir = output;
-  const std::string deviceSpec = deviceOptions.spec;
+  const std::filesystem::path outDir = output;
   if (input.empty()) throw UsageError("slice needs a field file: duplexfit slice FIELD --cusp T -o DIR");
   if (std::isnan(layer) && std::isnan(cusp)) throw UsageError("slice needs --cusp T (adaptive) or --layer H (uniform)");
   if (!std::isnan(cusp) && !(cusp > 0.0)) throw UsageError("--cusp must be > 0 (got " + std::to_string(cusp) + ")");
@@ -113,152 +88,30 @@ int cmdSlice(int argc, char** argv) {
   options.minLayer = std::isnan(minLayer) ? 0.0 : minLayer;
   options.maxLayer = std::isnan(maxLayer) ? 0.0 : maxLayer;
   options.grid = std::isnan(grid) ? 0.0 : grid;
+  job.units = units;
+  job.maskPixel = pixel;
+  job.svgPerLayer = svgPerLayer;
 
   const ImplicitField field = ImplicitField::load(input);
-  const Device device = deviceSpec.empty() ? Device::openDefault() : Device::open(deviceSpec);
-  log("device: " + device.description());
-  const Slicer slicer(device, field, options);  // validates the options against the field
-  const SliceOptions& used = slicer.options();
-  if (pngGiven) {
-    // Fail before slicing when the masks cannot be made.
-    const Eigen::Vector3d size = slicer.bounds().sizes();
-    const double w = (size[(used.axis + 1) % 3] + 4 * used.grid) / pixel;
-    const double h = (size[(used.axis + 2) % 3] + 4 * used.grid) / pixel;
-    if (w > 65536.0 || h > 65536.0) throw UsageError("--png-xy " + std::to_string(pixel) + " gives masks larger than 65536 pixels a side");
-  }
+  StderrProgress progress(quiet);
+  const Device device = openDevice(deviceOptions.spec, progress);
+  const SliceJob slicing(device, field, job, input);  // validates the options against the field
   StagedFolder staging(outDir);  // fails early, before slicing, if the folder is unusable
-  log(std::string("slicing ") + input + " along " + "xyz"[used.axis] + ", mode " + sliceModeName(used.mode) +
-      (used.layer > 0.0 ? ", uniform layers " + std::to_string(used.layer)
-                        : ", cusp " + std::to_string(used.cusp) + ", layers " + std::to_string(used.minLayer) + " to " +
-                              std::to_string(used.maxLayer)) +
-      ", grid " + std::to_string(used.grid) + ", heights " + std::to_string(used.start) + " to " +
-      std::to_string(used.end));
-
-  Timer t;
-  const SliceResult result = slicer.run([&](const SliceProgress& p) {
-    if (!quiet) {
-      std::cerr << "  layer " << p.layer << "  height " << std::setprecision(6) << p.height << "  thickness "
-                << p.thickness << "  loops " << p.loops << "  (" << std::setprecision(3) << 100.0 * p.fraction
-                << "%)\n";
-    }
-    return true;
-  });
-  const double sliceSeconds = t.seconds();
-  std::size_t touching = 0;
-  for (const SliceLayer& l : result.layers) touching += l.touchesBoundary ? 1 : 0;
-  if (touching > 0) {
-    log("warning: in " + std::to_string(touching) + " layer(s) a level set reached the padded grid border; loops were closed there");
-  }
-
-  t.restart();
-  writeCli(staging.path("slices.cli"), result, units);
-  if (svgPerLayer) {
-    const std::string dir = staging.path("svg", true);
-    for (std::size_t i = 0; i < result.layers.size(); ++i) {
-      writeSliceSvg((fs::path(dir) / layerName(i, "svg")).string(), result, static_cast<int>(i));
-    }
-  } else {
-    writeSliceSvg(staging.path("slices.svg"), result);
-  }
-  std::vector<double> maskArea;
-  if (pngGiven) {
-    const std::string dir = staging.path("masks", true);
-    const Eigen::AlignedBox2d box = planeBox(result);
-    for (std::size_t i = 0; i < result.layers.size(); ++i) {
-      const Image img = rasterizeLayer(result.layers[i], box, pixel);
-      std::size_t white = 0;
-      for (std::uint8_t p : img.pixels) white += p != 0 ? 1 : 0;
-      maskArea.push_back(static_cast<double>(white) * pixel * pixel);
-      writePng((fs::path(dir) / layerName(i, "png")).string(), img);
-    }
-  }
-  const double writeSeconds = t.seconds();
-
-  // Summary statistics.
-  double tMin = std::numeric_limits<double>::infinity(), tMax = 0.0, tSum = 0.0;
-  std::size_t loops = 0;
-  for (const SliceLayer& l : result.layers) {
-    tMin = std::min(tMin, l.thickness);
-    tMax = std::max(tMax, l.thickness);
-    tSum += l.thickness;
-    loops += l.loops.size();
-  }
-  const std::size_t n = result.layers.size();
-  const double tMean = n > 0 ? tSum / static_cast<double>(n) : 0.0;
-  if (n == 0) tMin = 0.0;
-
-  using Json = nlohmann::ordered_json;
-  Json heights = Json::array(), areas = Json::array(), loopsPerLayer = Json::array(), layers = Json::array();
-  for (const SliceLayer& l : result.layers) {
-    heights.push_back(l.height);
-    areas.push_back(l.area);
-    loopsPerLayer.push_back(l.loops.size());
-  }
-  for (std::size_t i = 0; i < n; ++i) {
-    const SliceLayer& l = result.layers[i];
-    std::size_t outer = 0;
-    for (const SliceLoop& p : l.loops) outer += p.outer() ? 1 : 0;
-    Json j{{"index", i + 1},
-           {"height", l.height},
-           {"thickness", l.thickness},
-           {"raw_thickness", l.rawThickness},
-           {"area", l.area},
-           {"loops", l.loops.size()},
-           {"outer_loops", outer},
-           {"holes", l.loops.size() - outer},
-           {"vertices", l.vertexCount()}};
-    if (pngGiven) j["mask_area"] = maskArea[i];
-    if (l.touchesBoundary) j["touches_border"] = true;
-    layers.push_back(std::move(j));
-  }
-  const Json summary{
-      {"input", input},
-      {"device", device.info().spec},
-      {"mode", sliceModeName(result.mode)},
-      {"axis", std::string(1, "xyz"[result.axis])},
-      {"adaptive", result.adaptive},
-      {"cusp_rule", cuspRuleName(result.rule)},
-      {"cusp", result.cusp},
-      {"min_layer", result.minLayer},
-      {"max_layer", result.maxLayer},
-      {"uniform_layer", result.layer},
-      {"grid", result.grid},
-      {"units_mm", units},
-      {"levels", result.levels},
-      {"start", result.start},
-      {"end", result.end},
-      {"layer_count", n},
-      {"thickness", {{"min", tMin}, {"mean", tMean}, {"max", tMax}}},
-      {"loops", loops},
-      {"vertices", result.vertices},
-      {"samples", result.samples},
-      {"refine_evaluations", result.refineEvaluations},
-      {"layers_touching_border", touching},
-      {"heights", std::move(heights)},
-      {"areas", std::move(areas)},
-      {"loops_per_layer", std::move(loopsPerLayer)},
-      {"layers", std::move(layers)},
-      {"seconds", {{"slice", sliceSeconds}, {"write", writeSeconds}, {"total", start.seconds()}}},
-      {"layers_per_second", sliceSeconds > 0 ? static_cast<double>(n) / sliceSeconds : 0.0},
-      {"vertices_per_second", sliceSeconds > 0 ? static_cast<double>(result.vertices) / sliceSeconds : 0.0}};
-  const std::string js = summary.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
-  {
-    AtomicFile f(staging.path("slices.json"));
-    f.write(js);
-    f.commit();
-  }
-  staging.commit();
-
+  const SliceJobResult result = slicing.run(&progress);
+  const SliceOutputs written = writeSliceOutputs(result, staging);
   if (json) {
-    std::cout << js;
-  } else {
-    std::cout << std::setprecision(5) << "slice " << input << ": " << n << " layers (" << sliceModeName(result.mode)
-              << ", " << (result.adaptive ? "adaptive" : "uniform") << "), thickness " << tMin << " to " << tMax
-              << " (mean " << tMean << "), " << loops << " loops, " << result.vertices << " vertices, " << sliceSeconds
-              << " s\n  " << (outDir / "slices.cli").string() << ", "
-              << (outDir / (svgPerLayer ? "svg/" : "slices.svg")).string() << ", "
-              << (outDir / "slices.json").string() << (pngGiven ? ", " + (outDir / "masks/").string() : "") << "\n";
+    std::cout << written.report;
+    return 0;
   }
+  const SliceResult& r = result.slices;
+  const SliceStats s = sliceStats(r);
+  std::cout << std::setprecision(5) << "slice " << input << ": " << r.layers.size() << " layers ("
+            << sliceModeName(r.mode) << ", " << (r.adaptive ? "adaptive" : "uniform") << "), thickness "
+            << s.thicknessMin << " to " << s.thicknessMax << " (mean " << s.thicknessMean << "), " << s.loops
+            << " loops, " << r.vertices << " vertices, " << result.secondsSlice << " s\n  "
+            << (outDir / "slices.cli").string() << ", " << (outDir / (svgPerLayer ? "svg/" : "slices.svg")).string()
+            << ", " << (outDir / "slices.json").string() << (pngGiven ? ", " + (outDir / "masks/").string() : "")
+            << "\n";
   return 0;
 }
 

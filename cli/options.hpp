@@ -83,6 +83,47 @@ inline CLI::Option* addFraction(CLI::App& app, const std::string& name, double& 
       ->type_name("F");
 }
 
+/// INPUT -o OUT and the shared groups of the cloud-in, cloud-out commands (denoise, normals).
+struct CloudJobArgs {
+  bool quiet = false;
+  bool json = false;
+  std::string input, output;
+  DeviceOptions device;
+};
+
+inline void addCloudJobArgs(CLI::App& app, CloudJobArgs& c) {
+  app.add_option("INPUT", c.input, "input cloud (PLY or XYZ)");
+  app.add_option("-o,--output", c.output, "output cloud (binary PLY with normals; required)")->type_name("OUT");
+  addDeviceOptions(app, c.device);
+  addQuiet(app, c.quiet);
+  addJson(app, c.json, "summary with parameters and timings on stdout");
+}
+
+/// Both INPUT and -o OUT were given.
+inline void requireCloudJobArgs(const CloudJobArgs& c, const char* command) {
+  if (c.input.empty()) {
+    throw UsageError(std::string(command) + " needs an input cloud: duplexfit " + command + " INPUT -o OUT");
+  }
+  if (c.output.empty()) throw UsageError(std::string(command) + " needs an output file: -o OUT");
+}
+
+/// --name N, an integer in [1, max].
+inline void addPositiveInt(CLI::App& app, const std::string& name, int& target, int max, const std::string& help) {
+  addInteger(app, name, target, help)->check([name, max](const std::string& v) {
+    const double d = parseFinite(v, name);
+    if (d < 1 || d > max) throw UsageError("option --" + name + " must be between 1 and " + std::to_string(max));
+    return std::string();
+  });
+}
+
+/// --name L, a length ≥ 0 (0: the rule's default).
+inline void addLength(CLI::App& app, const std::string& name, double& target, const std::string& help) {
+  addNumber(app, name, target, help)->check([name](const std::string& v) {
+    if (parseFinite(v, name) < 0.0) throw UsageError("option --" + name + " must be positive");
+    return std::string();
+  });
+}
+
 /// Parses the command's arguments (argv[0] is the command's name). Returns true when --help was printed
 /// (the command then exits 0). Unknown options, surplus arguments and missing values are UsageErrors
 /// worded as before CLI11 ("unknown option --x", "unexpected argument 'x'", "option --x needs a value"),

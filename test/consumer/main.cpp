@@ -1,10 +1,12 @@
 // Consumer check: links the installed duplexfit, assembles a small Wendland system and solves it on
 // the reference device and on the default device, then runs the whole fit-and-extract pipeline on a
 // sphere and writes its outputs into the folder argv[1]. Exit status 0 only if the solves converge and
-// agree and the pipeline gives a closed surface and offset surface.
+// agree, the pipeline gives a closed surface and offset surface, and the check job (jobs.hpp) finds the
+// written surface a valid closed mesh.
 #include <duplexfit/device.hpp>
 #include <duplexfit/error.hpp>
 #include <duplexfit/interrupter.hpp>
+#include <duplexfit/jobs.hpp>
 #include <duplexfit/linalg.hpp>
 #include <duplexfit/pipeline.hpp>
 #include <duplexfit/wendland.hpp>
@@ -12,6 +14,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <sstream>
 #include <string>
 
 namespace {
@@ -42,7 +45,15 @@ int pipeline(const duplexfit::PointSet& cloud, const std::string& outDir) {
   std::cout << progress.solves << " solve events, self-check " << (result.report.selfCheck.ok() ? "ok" : "FAILED")
             << "\n";
   const bool written = std::filesystem::exists(std::filesystem::path(outDir) / "report.json");
-  return result.surfaces.size() == 2 && progress.solves > 0 && result.report.selfCheck.ok() && written ? 0 : 1;
+  // `duplexfit check` as a library call on the written surface.
+  const CheckJobResult check = runCheckJob((std::filesystem::path(outDir) / "zero.ply").string());
+  std::ostringstream checkJson;
+  writeCheckJson(checkJson, check);
+  std::cout << "check: " << (check.check.valid() ? "valid" : "NOT valid") << ", genus " << check.check.genus << "\n";
+  const bool checked = check.check.valid() && checkJson.str().find("\"valid\": true") != std::string::npos;
+  return result.surfaces.size() == 2 && progress.solves > 0 && result.report.selfCheck.ok() && written && checked
+             ? 0
+             : 1;
 }
 
 /// Cancels at the first CG solve: runPipeline must throw Cancelled.
