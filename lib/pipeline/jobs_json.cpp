@@ -149,6 +149,8 @@ void writeCheckJson(std::ostream& out, const CheckJobResult& result) {
                   {"zero_area_faces", c.validation.zeroAreaFaces},
                   {"self_intersections_checked", c.selfIntersectionsChecked},
                   {"self_intersections", c.selfIntersectionsChecked ? Json(c.selfIntersections) : Json()},
+                  // false: the per-face work bound was reached and self_intersections is a lower bound
+                  {"self_intersections_complete", c.selfIntersectionsChecked && c.selfIntersectionsComplete},
                   {"intersecting_pairs", std::move(pairs)},
                   {"seconds", result.seconds}});
 }
@@ -215,8 +217,11 @@ void writeCheckText(std::ostream& out, const CheckJobResult& result) {
       << "degenerate triangles   " << c.validation.degenerateFaces() << " (" << c.validation.repeatedIndexFaces
       << " repeated index, " << c.validation.zeroAreaFaces << " zero area)\n"
       << "self-intersections     "
-      << (c.selfIntersectionsChecked ? std::to_string(c.selfIntersections) + " triangle pairs"
-                                     : std::string("not checked"))
+      << (!c.selfIntersectionsChecked ? std::string("not checked")
+          : c.selfIntersectionsComplete
+              ? std::to_string(c.selfIntersections) + " triangle pairs"
+              : "at least " + std::to_string(c.selfIntersections) +
+                    " triangle pairs (the search stopped at its work bound, CheckOptions::candidatePairBudget)")
       << "\n";
   if (!c.pairs.empty()) {
     out << "  first pairs:";

@@ -4,11 +4,15 @@
 // size_t in sampleMesh), and empty or all-degenerate meshes (reported watertight).
 #include <doctest/doctest.h>
 
+#include <sstream>
 #include <string>
+
+#include <nlohmann/json.hpp>
 
 #include "cli_runner.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/io.hpp"
+#include "duplexfit/jobs.hpp"
 #include "duplexfit/measure.hpp"
 #include "measure/measure_shapes.hpp"
 #include "temp_dir.hpp"
@@ -92,6 +96,18 @@ TEST_CASE("reliability: 20,000 copies of one triangle are counted, not stored") 
   CHECK(a.selfIntersections <= std::size_t{20000} * 1024);
   CHECK(a.pairs == b.pairs);
   CHECK(a.pairs.size() == 20);
+  {
+    // The job's text and JSON say that the count is a lower bound.
+    const CheckJobResult job = runCheckJob(path, small);
+    CHECK(job.check.selfIntersections == a.selfIntersections);
+    std::ostringstream text, json;
+    writeCheckText(text, job);
+    writeCheckJson(json, job);
+    CHECK(has(text.str(), "at least " + std::to_string(a.selfIntersections) + " triangle pairs"));
+    const nlohmann::json j = nlohmann::json::parse(json.str());
+    CHECK(j.at("self_intersections_complete") == false);
+    CHECK(j.at("self_intersections") == a.selfIntersections);
+  }
 
   if (kSanitized) {
     testing::skipPart("the CLI run on 20,000 copies (too slow under the sanitizers)");
