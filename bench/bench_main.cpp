@@ -22,7 +22,7 @@
 #include "duplexfit/wendland.hpp"
 #include "eigen_baseline.hpp"
 #include "harness.hpp"
-#include "linalg/ops.hpp"
+#include "duplexfit/cg_steps.hpp"
 #include "shapes.hpp"
 
 namespace duplexfit::bench {
@@ -149,7 +149,7 @@ TriadResult deviceTriad(const Device& device, Precision p, std::size_t n, int tr
   DeviceVector a(device, n, p), b(device, n, p), c(device, n, p);
   b.fill(1.0);
   c.fill(2.0);
-  const Timing t = timeTrials(device, trials, [&] { detail::triad(a, b, c, 3.0); });
+  const Timing t = timeTrials(device, trials, [&] { steps::triad(a, b, c, 3.0); });
   TriadResult r;
   r.elements = n;
   r.bytesPerElement = 3 * static_cast<std::size_t>(realBytes(p));
@@ -197,7 +197,7 @@ void runKernels(Block& blk, const System& sys, const DeviceCsr& a, int trials) {
   DeviceVector r = DeviceVector::upload(device, sys.y, prec);
   DeviceVector q(device, n, prec), x(device, n, prec);
   const DeviceVector dinv = DeviceVector::upload(device, a.diagonal().cwiseInverse(), prec);
-  const SpmvKernel kernel = detail::resolveSpmvKernel(device, SpmvKernel::Auto);
+  const SpmvKernel kernel = steps::resolveSpmvKernel(device, SpmvKernel::Auto);
   auto row = [&](const std::string& op, double bytes, const Timing& t) {
     const double best = gbs(bytes, t.wall.min);
     blk.kernels.addRow({sys.name, op, fmt(bytes / 1e6, 1), fmt(t.wall.median, 3), fmt(t.wall.min, 3),
@@ -212,11 +212,11 @@ void runKernels(Block& blk, const System& sys, const DeviceCsr& a, int trials) {
   const double bytes[3] = {a.spmvBytes(), 7.0 * vec, 4.0 * vec};
   auto op = [&](int i) {
     if (i == 0) {
-      (void)detail::spmvDot(a, p, q, kernel);
+      (void)steps::spmvDot(a, p, q, kernel);
     } else if (i == 1) {
-      (void)detail::cgUpdate(1e-3, p, q, dinv, x, r);
+      (void)steps::cgUpdate(1e-3, p, q, dinv, x, r);
     } else {
-      detail::cgDirection(0.5, r, dinv, p);
+      steps::cgDirection(0.5, r, dinv, p);
     }
   };
   for (int i = 0; i < 3; ++i) op(i);

@@ -118,6 +118,12 @@ std::vector<double> reduceLaunch(const Device& device, Precision precision, cl::
   return sums;
 }
 
+}  // namespace detail
+
+namespace steps {
+
+using namespace detail;  // the launch helpers
+
 void vmul(const DeviceVector& d, const DeviceVector& r, DeviceVector& z) {
   checkCompatible("vmul", d, r);
   checkCompatible("vmul", r, z);
@@ -266,6 +272,6 @@ void cgDirection(double beta, const DeviceVector& r, const DeviceVector& dinv, D
   });
 }
 
-}  // namespace detail
+}  // namespace steps
 
 }  // namespace duplexfit

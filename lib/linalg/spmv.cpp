@@ -45,7 +45,9 @@ double referenceSpmv(const detail::CsrStorage& s, const T* x, T* y, bool withDot
 
 }  // namespace
 
-namespace detail {
+namespace steps {
+
+using namespace detail;  // the launch helpers
 
 SpmvKernel resolveSpmvKernel(const Device& device, SpmvKernel kernel) {
   if (kernel != SpmvKernel::Auto || device.isReference()) return kernel;
@@ -103,7 +105,7 @@ double spmvDot(const DeviceCsr& a, const DeviceVector& x, DeviceVector& y, SpmvK
   });
 }
 
-}  // namespace detail
+}  // namespace steps
 
 void spmv(const DeviceCsr& a, const DeviceVector& x, DeviceVector& y, SpmvKernel kernel) {
   checkSpmv(a, x, y);
@@ -118,7 +120,7 @@ void spmv(const DeviceCsr& a, const DeviceVector& x, DeviceVector& y, SpmvKernel
       referenceSpmv<T>(a.storage(), x.storage().host<T>().data(), y.storage().host<T>().data(), false);
       return;
     }
-    detail::launchSpmv(a, x, y, kernel);
+    steps::launchSpmv(a, x, y, kernel);
   });
 }
 
