@@ -8,6 +8,7 @@
 #include <string_view>
 #include <vector>
 
+#include "duplexfit/timer.hpp"
 #include "duplexfit/types.hpp"
 
 namespace duplexfit {
@@ -147,7 +148,7 @@ class DeviceStopwatch {
   struct Markers;
   Device device_;
   std::unique_ptr<Markers> markers_;
-  double t0_ = 0.0;
+  SteadyClock::time_point t0_{};
   double wallMs_ = 0.0;
   double deviceMs_ = 0.0;
 };

@@ -15,6 +15,7 @@
 #include "device/cl_check.hpp"
 #include "device/device_impl.hpp"
 #include "duplexfit/error.hpp"
+#include "duplexfit/timer.hpp"
 
 namespace duplexfit {
 
@@ -390,12 +391,6 @@ struct DeviceStopwatch::Markers {
   cl::Event begin, end;
 };
 
-namespace {
-double nowSeconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-}  // namespace
-
 DeviceStopwatch::DeviceStopwatch(const Device& device) : device_(device) {}
 DeviceStopwatch::DeviceStopwatch(DeviceStopwatch&&) noexcept = default;
 DeviceStopwatch& DeviceStopwatch::operator=(DeviceStopwatch&&) noexcept = default;
@@ -407,7 +402,7 @@ void DeviceStopwatch::start() {
     if (!markers_) markers_ = std::make_unique<Markers>();
     DUPLEXFIT_CL_CHECK(device_.impl()->queue().enqueueMarkerWithWaitList(nullptr, &markers_->begin));
   }
-  t0_ = nowSeconds();
+  t0_ = SteadyClock::now();
 }
 
 void DeviceStopwatch::stop() {
@@ -415,7 +410,7 @@ void DeviceStopwatch::stop() {
     DUPLEXFIT_CL_CHECK(device_.impl()->queue().enqueueMarkerWithWaitList(nullptr, &markers_->end));
   }
   device_.finish();
-  wallMs_ = (nowSeconds() - t0_) * 1e3;
+  wallMs_ = secondsSince(t0_) * 1e3;
   deviceMs_ = std::numeric_limits<double>::quiet_NaN();
   if (!device_.isReference() && markers_) {
     cl_ulong b = 0, e = 0;
