@@ -11,19 +11,22 @@ cloud, plus the small mesh utilities the fidelity benchmark shares with it.
 Both peer packages are optional: they are imported only when a step needs them, and a missing one raises
 PeerMissing naming the package to install. numpy is required.
 
-Library use (bench/fidelity.py):  read_cloud, read_mesh, write_mesh, poisson, vdb_offset, components,
-sphere_mesh, torus_mesh.
+Library use (bench/fidelity.py, bench/fit_bench.py):  read_cloud, read_mesh, write_mesh, poisson, vdb_offset,
+two_step, components, sphere_mesh, torus_mesh.
 Command line (each step prints one JSON object on stdout, so a caller can run it in its own process):
 
   peer.py check                                    versions of the peer packages (exit 3 if one is missing)
   peer.py poisson CLOUD -o OUT.ply [--depth 9] [--scale 1.1] [--linear-fit] [--trim Q] [--threads N]
   peer.py offset MESH --delta D -o OUT.ply [--voxel H] [--margin 3] [--adaptivity 0]
+  peer.py two-step CLOUD --delta D -o OUTDIR [--depth 9] [--voxel H] [--margin 3]
+                                                   the whole chain, timed per stage (bench/fit_bench.py)
   peer.py components MESH                          connected components and their areas
   peer.py truth sphere|torus -o OUT.ply --radius R | --R R --r r [--tol 1e-5]
 """
 import argparse
 import json
 import math
+import os
 import sys
 import time
 
@@ -444,6 +447,33 @@ def vdb_offset(verts, faces, delta, voxel=None, margin=VDB_MARGIN, adaptivity=0.
     return pts, f, info
 
 
+def two_step(cloud_path, delta, outdir, depth=POISSON_DEPTH, voxel=None, margin=VDB_MARGIN, threads=-1):
+    """The whole peer chain as a user would run it: read the cloud, Poisson, write the zero mesh, VDB offset
+    of that mesh at delta, write the offset mesh (outdir/zero.ply, outdir/offset1.ply, duplexfit's names).
+    Both packages are imported before the clock starts. Returns {'seconds': {'read', 'poisson',
+    'write_zero', 'offset', 'write_offset', 'total'}, 'poisson': info, 'vdb': info, 'zero', 'offset'}."""
+    import_open3d()
+    import_openvdb()
+    zero_path = os.path.join(outdir, "zero.ply")
+    offset_path = os.path.join(outdir, "offset1.ply")
+    t = [time.perf_counter()]
+    pts, nrm = read_cloud(cloud_path)
+    t.append(time.perf_counter())
+    v, f, pinfo = poisson(pts, nrm, depth=depth, threads=threads)
+    t.append(time.perf_counter())
+    write_mesh(zero_path, v, f)
+    t.append(time.perf_counter())
+    ov, of, vinfo = vdb_offset(v, f, delta, voxel, margin)
+    t.append(time.perf_counter())
+    write_mesh(offset_path, ov, of)
+    t.append(time.perf_counter())
+    names = ("read", "poisson", "write_zero", "offset", "write_offset")
+    seconds = {k: t[i + 1] - t[i] for i, k in enumerate(names)}
+    seconds["total"] = t[-1] - t[0]
+    return {"seconds": seconds, "points": int(len(pts)), "poisson": pinfo, "vdb": vinfo,
+            "zero": zero_path, "offset": offset_path}
+
+
 # ------------------------------------------------------------------------------------- command line
 
 def main(argv=None):
@@ -465,6 +495,14 @@ def main(argv=None):
     q.add_argument("--voxel", type=float, default=0.0)
     q.add_argument("--margin", type=int, default=VDB_MARGIN)
     q.add_argument("--adaptivity", type=float, default=0.0)
+    q = sub.add_parser("two-step")
+    q.add_argument("cloud")
+    q.add_argument("--delta", type=float, required=True)
+    q.add_argument("-o", "--outdir", required=True)
+    q.add_argument("--depth", type=int, default=POISSON_DEPTH)
+    q.add_argument("--voxel", type=float, default=0.0)
+    q.add_argument("--margin", type=int, default=VDB_MARGIN)
+    q.add_argument("--threads", type=int, default=-1)
     q = sub.add_parser("components")
     q.add_argument("mesh")
     q.add_argument("--no-weld", action="store_true")
@@ -487,6 +525,8 @@ def main(argv=None):
             v, f = read_mesh(a.mesh)
             v, f, out = vdb_offset(v, f, a.delta, a.voxel or None, a.margin, a.adaptivity)
             write_mesh(a.output, v, f)
+        elif a.cmd == "two-step":
+            out = two_step(a.cloud, a.delta, a.outdir, a.depth, a.voxel or None, a.margin, a.threads)
         elif a.cmd == "components":
             v, f = read_mesh(a.mesh)
             comps = components(v, f, weld=not a.no_weld)

@@ -217,7 +217,7 @@ def write_markdown(args, results, devices):
              ((" --device " + args.device) if args.device else "", git, datetime.date.today().isoformat(), dev_desc))
     L.append("")
     L.append("Both modes use the same multi-level CSRBF fit (float, default parameters, off-surface points), the "
-             "same marching grid (cell min(σ_M/2, min|δ|/4), at least 128 cells along the longest side) and the same Metro sampling (%d samples per triangle "
+             "same marching grid (cell σ_M/2, at least 128 and at most 512 cells along the longest side) and the same Metro sampling (%d samples per triangle "
              "plus the vertices, fixed seed). *Duplex*: one field, the offset surfaces are its δ-level sets. "
              "*Separate*: `fit --separate`, the surface fitted from the cloud alone and every offset surface "
              "from its own valid offset points alone." % args.samples)

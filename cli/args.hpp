@@ -38,6 +38,6 @@ inline std::vector<double> parseNumberList(const std::string& text, const char* 
 }
 
 /// Exit codes (README): 1 usage, 2 I/O, 3 device, 4 numerical failure with --strict.
-constexpr int kUsage = 1, kIo = 2, kDevice = 3, kNumerical = 4;
+constexpr int kUsage = 1, kIo = 2, kDevice = 3, kNumerical = 4, kOutOfMemory = 5;
 
 }  // namespace duplexfit::cli

@@ -20,16 +20,20 @@ const char* const kMeasureHelp =
       --samples N      face samples per triangle on average, plus every vertex (default 10)
       --seed S         seed of the deterministic sampling (default 1)
       --json           machine-readable output
+      --max-memory SIZE  memory budget (as fit's): the samples and the other mesh's tree
   measure O --offset-of S --delta D
                      accuracy of offset mesh O against surface mesh S for the signed offset D (positive
                      = inward, as in fit): dist(sample, S) and |dist − |D||, max / mean / RMS / p99,
                      relative to |D|, and the share of samples on the wrong side of S
   check MESH         closed, 2-manifold, oriented, outward, components, Euler characteristic, genus,
-                     boundary loops, degenerate triangles and self-intersecting triangle pairs
+                     boundary loops, degenerate and float32-degenerate triangles, slivers (minimum angle
+                     histogram) and self-intersecting triangle pairs
       --json           machine-readable output
-      --strict         exit with status 4 unless the mesh is closed, manifold, oriented, outward and
-                       free of self-intersections
+      --strict         exit with status 4 unless the mesh is closed, manifold, oriented, outward, free
+                       of self-intersections and of float32-degenerate triangles, with at most 0.1% slivers
+      --sliver-angle DEG  a sliver's minimum angle is below DEG (default 1)
       --no-intersections  skip the self-intersection test
+      --max-memory SIZE  memory budget (as fit's)
 )";
 
 namespace {
@@ -67,6 +71,7 @@ int cmdMeasure(int argc, char** argv) {
   addNumber(app, "delta", delta, "the signed offset of --offset-of (positive = inward, as in fit)");
   addJson(app, json);
   addQuiet(app, quiet);
+  addMaxMemory(app, options.limits);
   if (parse(app, argc, argv)) return 0;
   checkMeasureOptions(options, seed);
   StderrProgress progress(quiet);
@@ -91,11 +96,14 @@ int cmdCheck(int argc, char** argv) {
   app.add_option("MESH", pos, "the mesh (PLY, OBJ or STL)");
   addJson(app, json);
   addQuiet(app, quiet);
-  app.add_flag("--strict", strict, "exit with status 4 unless the mesh is closed, manifold, oriented, outward and "
-                                   "free of self-intersections");
+  app.add_flag("--strict", strict, "exit with status 4 unless the mesh is closed, manifold, oriented, outward, "
+                                   "free of self-intersections and float32-degenerate triangles, <= 0.1% slivers");
   app.add_flag_callback("--no-intersections", [&] { options.selfIntersections = false; },
                         "skip the self-intersection test");
+  addNumber(app, "sliver-angle", options.sliverAngle, "a sliver's minimum angle is below DEG degrees (default 1)");
+  addMaxMemory(app, options.limits);
   if (parse(app, argc, argv)) return 0;
+  if (!(options.sliverAngle >= 0.0 && options.sliverAngle <= 60.0)) throw UsageError("--sliver-angle must be in [0, 60]");
   if (pos.size() != 1) throw UsageError("usage: duplexfit check MESH [--json] [--strict]");
   StderrProgress progress(quiet);
   const CheckJobResult r = runCheckJob(pos[0], options, &progress);

@@ -21,17 +21,19 @@ const char* const kPreprocessHelp = R"(  denoise INPUT      bilateral point filt
       --area-sigma S   sigma of the area weights sigma^2/N(q) (default sigma_M, the fit's finest support)
       --iterations N   passes, each from the previous output (default 1)
       --symmetric-range  range weight exp(-t^2/(2 sigma_zeta^2)) instead of exp(-t^2/sigma_zeta^2)
-      --reestimate-normals  PCA normals of the filtered points, signed like the input's (--normal-k K, 15)
+      --reestimate-normals  PCA normals of the filtered points, signed like the input's (--normals-k K, 15)
       --device SPEC, --precision float|double, --quiet, --json (summary with parameters and timings)
+      --max-memory SIZE  memory budget (as fit's)
   normals INPUT      estimate outward unit normals of a cloud (normals in INPUT, if any, are ignored): PCA
                      of k neighbours, spanning-tree orientation, outward sign per connected component
       -o OUT           output cloud (binary PLY with normals; required)
-      --k K            neighbours of each point's PCA (default 15)
+      --normals-k K    neighbours of each point's PCA (default 15)
       --graph-k K      neighbours per point of the orientation graph (default K)
       --keep-existing  when INPUT has normals, write them unchanged instead of estimating
       --allow-unoriented  flat or open clouds get consistent normals without an outward side instead of
                        an error
       --device SPEC, --precision float|double, --quiet, --json (summary with parameters and timings)
+      --max-memory SIZE  memory budget (as fit's)
 )";
 
 namespace {
@@ -52,13 +54,16 @@ int cmdDenoise(int argc, char** argv) {
   addPositiveInt(app, "iterations", o.iterations, 1000, "passes, each from the previous output (default 1)");
   app.add_flag("--symmetric-range", o.symmetricRange, "range weight exp(-t^2/(2 sigma_zeta^2))");
   app.add_flag("--reestimate-normals", o.reestimateNormals, "PCA normals of the filtered points");
-  addPositiveInt(app, "normal-k", o.normalK, 1000, "neighbours of --reestimate-normals (default 15)");
+  addPositiveInt(app, "normals-k", o.normalK, 1000, "neighbours of --reestimate-normals (default 15)");
+  addMaxMemory(app, o.limits);
   if (parse(app, argc, argv)) return 0;
   o.precision = c.device.precision;
   requireCloudJobArgs(c, "denoise");
   StderrProgress progress(c.quiet);
   const DenoiseJobResult r = runDenoiseJob(open(c), c.input, o, &progress);
+  OutputFolders folders = OutputFolders::forFile(c.output);
   const double writeSeconds = writeCloudOutput(c.output, r.points);
+  folders.keep();
   if (c.json) {
     writeDenoiseJson(std::cout, r, c.output, writeSeconds);
   } else if (!c.quiet) {
@@ -76,18 +81,21 @@ int cmdNormals(int argc, char** argv) {
   addCloudJobArgs(app, c);
   NormalOptions o;
   bool keep = false;
-  addPositiveInt(app, "k", o.k, 1000, "neighbours of each point's PCA (default 15)");
+  addPositiveInt(app, "normals-k", o.k, 1000, "neighbours of each point's PCA (default 15)");
   addInteger(app, "graph-k", o.graphK, "neighbours per point of the orientation graph (default K)");
   app.add_flag_callback("--allow-unoriented", [&] { o.requireOutward = false; },
                         "flat or open clouds get consistent normals without an outward side");
   app.add_flag("--keep-existing", keep, "when INPUT has normals, write them unchanged");
+  addMaxMemory(app, o.limits);
   if (parse(app, argc, argv)) return 0;
   if (o.graphK < 0 || o.graphK > 1000) throw UsageError("option --graph-k must be between 1 and 1000");
   o.precision = c.device.precision;
   requireCloudJobArgs(c, "normals");
   StderrProgress progress(c.quiet);
   const NormalsJobResult r = runNormalsJob(open(c), c.input, o, keep, &progress);
+  OutputFolders folders = OutputFolders::forFile(c.output);
   const double writeSeconds = writeCloudOutput(c.output, r.points);
+  folders.keep();
   if (c.json) {
     writeNormalsJson(std::cout, r, c.output, writeSeconds);
   } else if (!c.quiet) {

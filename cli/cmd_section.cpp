@@ -2,6 +2,7 @@
 // the 0-level and offset contours). Every image is written under a temporary name first and renamed
 // into place only when all of them are done, so a failed run leaves no partial output.
 // The job (prepareSectionJob, runSectionJob) and its summary are the library's (jobs.hpp).
+#include <filesystem>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -19,7 +20,7 @@ const char* const kSectionHelp =
       -o OUT.png       output; without --plane three planes through the box centre: OUT_x.png,
                        OUT_y.png, OUT_z.png (-o FOLDER: section_x.png, ... inside it)
       --plane x=C|y=C|z=C  one plane, in input units
-      --size N         pixels along the longer side (16..16384, default 1024)
+      --size N         pixels along the longer side (16..8192, default 1024)
       --range R        colour scale ±R (default: the 99th percentile of |f| in the picture)
       --gamma G        colour intensity ∝ (|f|/R)^G (default 0.5; 1: linear)
       --rect U0,V0,U1,V1   the part of the plane shown, in (right, up) coordinates: (y, z) for x=C,
@@ -27,6 +28,7 @@ const char* const kSectionHelp =
       --points CLOUD   draw the cloud's points near the plane as yellow dots
       --band W         only points within W of the plane (default 1% of the box's longest side)
       --device SPEC, --precision float|double, --json (summary on stdout), --quiet
+      --max-memory SIZE  memory budget (as fit's; the picture needs about 16 bytes a pixel)
 )";
 int cmdSection(int argc, char** argv) {
   CLI::App app("picture of f on an axis-aligned plane", "section");
@@ -47,6 +49,7 @@ int cmdSection(int argc, char** argv) {
   addDeviceOptions(app, deviceOptions);
   addQuiet(app, quiet);
   addJson(app, json);
+  addMaxMemory(app, options.limits);
   if (parse(app, argc, argv)) return 0;
   if (options.range < 0.0) throw UsageError("option --range must be positive");
   if (!(options.gamma > 0.0 && options.gamma <= 10.0)) throw UsageError("option --gamma must be in (0, 10]");
@@ -62,7 +65,7 @@ int cmdSection(int argc, char** argv) {
   }
   if (fieldPath.empty()) throw UsageError("section needs a field file: duplexfit section FIELD -o OUT.png");
   if (output.empty()) throw UsageError("section needs an output: -o OUT.png (or -o FOLDER)");
-  if (options.size < 16 || options.size > 16384) throw UsageError("option --size must be between 16 and 16384");
+  if (options.size < 16 || options.size > 8192) throw UsageError("option --size must be between 16 and 8192 (64M pixels)");
 
   if (!planeText.empty()) job.plane = SectionPlane::parse(planeText);
   job.pointsPath = pointsPath;
@@ -70,7 +73,10 @@ int cmdSection(int argc, char** argv) {
   const SectionJob prepared = prepareSectionJob(fieldPath, job);  // loads and checks before the device work
   StderrProgress progress(quiet);
   const Device device = openDevice(deviceOptions.spec, progress);
+  const bool folderOutput = std::filesystem::is_directory(output) || output.back() == '/';
+  OutputFolders folders = folderOutput ? OutputFolders(output) : OutputFolders::forFile(output);
   const SectionJobResult result = runSectionJob(device, prepared, &progress);
+  folders.keep();
   if (json) {
     writeSectionJson(std::cout, result, fieldPath);
     return 0;

@@ -1,3 +1,5 @@
+set(DUPLEXFIT_SANITIZER_DEFAULTS ${CMAKE_CURRENT_LIST_DIR}/sanitizer_defaults.cpp)
+
 # duplexfit_set_sanitizers(target): DUPLEXFIT_SANITIZE="address;undefined" -> compile and link flags.
 function(duplexfit_set_sanitizers target)
   if(DUPLEXFIT_SANITIZE)
@@ -5,6 +7,11 @@ function(duplexfit_set_sanitizers target)
     target_compile_options(${target} PRIVATE -fsanitize=${_list} -fno-omit-frame-pointer
                                              -fno-sanitize-recover=undefined)
     target_link_options(${target} PRIVATE -fsanitize=${_list})
+    get_target_property(_type ${target} TYPE)
+    if(_type STREQUAL "EXECUTABLE")
+      # Default runtime options every sanitized program starts with (see the file).
+      target_sources(${target} PRIVATE ${DUPLEXFIT_SANITIZER_DEFAULTS})
+    endif()
   endif()
 endfunction()
 

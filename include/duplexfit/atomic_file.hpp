@@ -68,17 +68,23 @@ class AtomicFile {
 ///     out.commit();
 class StagedFolder {
  public:
-  /// Creates the output folder (and parents) and the staging folder inside it.
+  /// Creates the output folder (and parents) and the staging folder `.duplexfit-tmp-PID` inside it, after
+  /// removing the staging folders of earlier runs whose process no longer exists (killed runs).
   /// @throws IoError when either cannot be created.
   explicit StagedFolder(const std::filesystem::path& outDir);
-  /// Removes the staging folder and whatever is still in it. Never throws.
+  /// Removes the staging folder and whatever is still in it, and the output folder (and the parents it
+  /// needed) too when this object created them and nothing was committed: a failed run leaves no empty
+  /// folder behind. Never throws.
   ~StagedFolder();
   StagedFolder(const StagedFolder&) = delete;
   StagedFolder& operator=(const StagedFolder&) = delete;
 
-  /// The staged path of output `name`; with `folder`, the folder is created. @throws IoError.
+  /// The staged path of output `name`; with `folder`, the folder is created. The entry staged LAST is the
+  /// set's index (report.json, slices.json): see commit(). @throws IoError.
   std::string path(const std::string& name, bool folder = false);
-  /// Moves every staged entry into the output folder (a folder replaces an older one of that name).
+  /// Moves every staged entry into the output folder (a folder replaces an older one of that name). The
+  /// index (the last entry) is removed from the output folder first and moved in last, so whenever the
+  /// index is present every entry it names comes from the same run; a run killed half-way leaves no index.
   /// @throws IoError naming the entry that cannot be moved.
   void commit();
   /// The output folder.
@@ -87,6 +93,8 @@ class StagedFolder {
  private:
   std::filesystem::path outDir_, dir_;
   std::vector<std::string> names_;
+  std::vector<std::filesystem::path> created_;  ///< folders this object created, deepest first
+  bool committed_ = false;
 };
 
 }  // namespace duplexfit

@@ -53,7 +53,7 @@ class BuildError : public DeviceError {
   std::string log_;
 };
 
-/// Thrown when a progress callback asked to cancel a long operation.
+/// Thrown when an Interrupter asked to cancel a long operation.
 class Cancelled : public Error {
  public:
   using Error::Error;

@@ -2,7 +2,6 @@
 // whose 0-level set is the surface and whose δ-level sets are the requested offset surfaces.
 #pragma once
 
-#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -11,6 +10,7 @@
 #include "duplexfit/field.hpp"
 #include "duplexfit/interrupter.hpp"
 #include "duplexfit/linalg.hpp"
+#include "duplexfit/resources.hpp"
 #include "duplexfit/point_set.hpp"
 
 namespace duplexfit {
@@ -77,9 +77,22 @@ struct FitOptions {
   /// fractions of the bounding box's largest side): the remaining fit error at every centre. 0: only the
   /// relative criterion of `solver`. The default keeps E_0 well below the float path's 1e-4 target.
   double levelTolerance = 1e-6;
+  /// CG relative tolerance of the levels below the finest (1 … M − 1), whose remaining error the next
+  /// level fits again (docs/method.md §5, "Coarse tolerance"); 0: solver.relativeTolerance, as the finest
+  /// level. At 1e-3 the CG iterations of those levels fall by about half with E_0 and the meshes' Metro
+  /// figures unchanged to 3 digits (fandisk_50k, eight_110k, wheel_118k); at 1e-2 wheel_118k's E_0 rose 7%.
+  double coarseTolerance = 1e-3;
   PreconditionerKind preconditioner = PreconditionerKind::BlockJacobi;
   int blockSize = 16;  ///< rows per block of the block Jacobi preconditioner
+  /// The memory budget: before the first level, the finest level's lower bound (every input point a centre
+  /// with its offset and off-surface companions, one non-zero a row) is checked; before each level's
+  /// assembly, its estimate (estimateLevelBytes with the sampled non-zero count). Over it: MemoryLimitExceeded.
+  ResourceLimits limits{};
 };
+
+/// The memory one level's solve holds: the CSR matrix on the host and the device, the block Jacobi
+/// preconditioner, the CG vectors and the level's centres, targets and weights.
+double estimateLevelBytes(std::size_t centres, std::size_t nonZeros, const FitOptions& options = {});
 
 /// One hierarchy level's counts, solver outcome and stage times.
 struct LevelReport {
@@ -154,12 +167,6 @@ struct FitResult {
   std::shared_ptr<const FieldEvaluator> evaluator;
 };
 
-/// A progress event of the fit (stage as an enum, level 0 outside levels, CG iteration/residual during
-/// solves): the FitEvent that an Interrupter receives.
-using FitProgress = FitEvent;
-/// Return false to cancel: fit() then throws Cancelled.
-using FitProgressCallback = std::function<bool(const FitProgress&)>;
-
 /// The supports of the fit's levels for a cloud (docs/method.md §4), in the points' own units.
 struct FitScales {
   double diagonal = 0.0;     ///< L: the diagonal of the (slightly enlarged) bounding box
@@ -175,9 +182,13 @@ struct FitScales {
 FitScales fitScales(const Points& positions, double alpha = 0.75, int levels = 0);
 
 /// Fits the field. Points are used as given (merge duplicates first, e.g. PointSet::mergeDuplicates).
+/// `interrupter` (may be null) receives a FitEvent at every stage of every level and at every
+/// solver.progressInterval-th CG iteration, each followed by wasInterrupted(percent): the share of the
+/// fit's work done (a level weighs as its centres, the levels ahead estimated; within a solve, the decades
+/// of the residual gained), never decreasing, 100 at the final errors; -1 before the first level.
 /// @throws InvalidArgument (too few/degenerate points, bad options naming the field), DeviceError, Cancelled.
 FitResult fit(const Device& device, const PointSet& points, const FitOptions& options = {},
-              const FitProgressCallback& progress = {});
+              Interrupter* interrupter = nullptr);
 
 /// The separate-fit baseline (the comparison of the paper's Table 1, docs/method.md §11): the surface fitted
 /// from the cloud alone and every offset surface from its own offset points alone, each a multi-level CSRBF
@@ -199,9 +210,9 @@ struct SeparateFitResult {
 PointSet offsetPointCloud(const PointSet& points, double delta, bool normalsInward = false, double eta = 1e-2,
                           bool sideTest = false);
 
-/// Runs the separate-fit baseline with the options of fit() (offsets as in fit(); progress events carry the
-/// message "surface" or "offset j" at the start of each fit). @throws as fit().
+/// Runs the separate-fit baseline with the options of fit() (offsets as in fit(); a FitStage::Start event
+/// with the message "surface" or "offset j" begins each fit). @throws as fit().
 SeparateFitResult fitSeparate(const Device& device, const PointSet& points, const FitOptions& options = {},
-                              const FitProgressCallback& progress = {});
+                              Interrupter* interrupter = nullptr);
 
 }  // namespace duplexfit

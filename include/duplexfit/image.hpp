@@ -26,9 +26,14 @@ struct Image {
   }
 };
 
-/// Writes `image` as an 8-bit PNG (grey, RGB or RGBA), atomically (temporary file + rename).
-/// @throws InvalidArgument for an inconsistent image, IoError naming `path` on a write error.
-void writePng(const std::string& path, const Image& image);
+/// Writes `image` as an 8-bit PNG (grey, RGB or RGBA), atomically (temporary file + rename). With
+/// `pixelsPerMetre` > 0 the file gets a pHYs chunk with that resolution on both axes (unit: metre; DPI =
+/// pixelsPerMetre · 0.0254). @throws InvalidArgument for an inconsistent image or pixelsPerMetre > 2^31 − 1,
+/// IoError naming `path` on a write error.
+void writePng(const std::string& path, const Image& image, std::uint32_t pixelsPerMetre = 0);
+/// The bytes of the PNG file writePng would write (for outputs packed into an archive).
+/// @throws InvalidArgument as writePng, IoError on an encoder error.
+std::vector<std::uint8_t> encodePng(const Image& image, std::uint32_t pixelsPerMetre = 0);
 
 /// Reads an 8-bit or 16-bit grey/RGB/RGBA or palette PNG into 8-bit samples (16-bit scaled down,
 /// palette expanded to RGB). @throws IoError naming `path` when it is missing or not a valid PNG.

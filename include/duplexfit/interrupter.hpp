@@ -1,7 +1,9 @@
-// Interrupter: the one progress-and-cancellation type of the long-running operations (runPipeline,
-// runMeshPipeline). After the idea of OpenVDB's util::NullInterrupter: the base class does nothing and
-// never interrupts; derive from it and override what you need. An operation that finds
-// wasInterrupted() true throws duplexfit::Cancelled.
+// Interrupter: the one progress-and-cancellation type of every long-running operation (fit, fitSeparate,
+// solveCg, polygonize, extractSurfaces, slice, estimateNormals, bilateralFilter, runPipeline, the jobs).
+// After the idea of OpenVDB's util::NullInterrupter: the base class does nothing and never interrupts;
+// derive from it and override what you need. Every operation takes it as its last argument
+// (`Interrupter* = nullptr`); one that finds wasInterrupted() true throws duplexfit::Cancelled (solveCg
+// instead returns with StopReason::Cancelled, as it reports every other stop in its SolveStats).
 #pragma once
 
 #include <string>
@@ -24,7 +26,7 @@ enum class FitStage {
 /// "start", "hierarchy", "constraints", "assembly", "solve", "residual", "correction", "errors", "other".
 const char* fitStageName(FitStage stage) noexcept;
 
-/// One progress event of a fit.
+/// One progress event of a fit (solveCg sends Solve events with level 0; fit() fills in the level).
 struct FitEvent {
   FitStage stage = FitStage::Other;
   int level = 0;         ///< k ≥ 1 inside a level, 0 outside

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -67,6 +68,16 @@ PointSet readPointCloud(const std::string& path, const PointReadOptions& options
 PointCloudFile readPointCloudWithReport(const std::string& path,
                                         const PointReadOptions& options = {});
 
+/// The row count of a PLY file's vertex element (from its header). @throws IoError naming the file.
+std::int64_t plyVertexCount(const std::string& path);
+
+/// Rows [first, first + count) of a PLY cloud's vertex element, read as readPointCloud reads the whole
+/// cloud (report.points = count). Binary rows before `first` are skipped by seeking, so each rank of a
+/// distributed fit reads only its own byte range. @throws IoError naming the file when the range is not
+/// inside the element (and as readPointCloud), InvalidArgument for count < 0.
+PointCloudFile readPlyVertexRows(const std::string& path, std::int64_t first, std::int64_t count,
+                                 const PointReadOptions& options = {});
+
 /// Writes binary little-endian PLY with float x y z nx ny nz (the layout of the shared clouds),
 /// atomically. @throws InvalidArgument when a value does not fit in a float; IoError on write
 /// errors.
@@ -74,11 +85,39 @@ void writePointCloud(const std::string& path, const PointSet& points);
 
 /// Mesh file formats.
 enum class MeshFormat {
-  Auto,  ///< from the extension (case-insensitive): .ply or none → Ply, .obj → Obj, .stl → Stl
+  Auto,  ///< from the extension (case-insensitive): .ply or none → Ply, .obj → Obj, .stl → Stl, .3mf → ThreeMf
   Ply,   ///< binary little-endian PLY: float x y z; faces "list uchar int vertex_indices"
   Obj,   ///< Wavefront OBJ text: "v x y z" and "f i j k" (1-based), coordinates round-trip exactly
   Stl,   ///< binary STL: float normal (computed per face) and corners, no attributes
+  /// 3MF core (through lib3mf, an optional build component: mesh3mfAvailable()): one mesh object and one
+  /// build item, unit millimetre (coordinates written as they are), float32 vertices; UUIDs derived
+  /// from the content, so equal meshes give equal files.
+  ThreeMf,
 };
+
+/// True when this build reads and writes 3MF (it was built with lib3mf, Debian: lib3mf-dev).
+bool mesh3mfAvailable() noexcept;
+/// "auto", "ply", "obj", "stl" or "3mf".
+const char* meshFormatName(MeshFormat format) noexcept;
+
+/// The mesh format of a path by its extension, as readMesh and writeMesh pick it (Auto for any other
+/// extension, where they throw).
+MeshFormat meshFormatOf(const std::string& path);
+
+/// What an input file holds: an oriented point cloud or a triangle mesh.
+enum class InputKind {
+  Auto,   ///< decide from the file (detectInputKind)
+  Cloud,  ///< readPointCloud
+  Mesh,   ///< readMesh
+};
+
+/// "auto", "cloud" or "mesh".
+const char* inputKindName(InputKind kind) noexcept;
+
+/// Cloud or Mesh: .stl and .obj files are meshes; a .ply file is a mesh when its header declares a face
+/// element with at least one face (only the header is read); anything else is a cloud.
+/// @throws IoError when a .ply file cannot be opened or its header is malformed.
+InputKind detectInputKind(const std::string& path);
 
 /// Writes a mesh atomically in `format` (Auto: by extension).
 /// @throws InvalidArgument on an unknown extension, an out-of-range face index (naming the face) or

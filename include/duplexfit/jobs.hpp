@@ -12,6 +12,7 @@
 
 #include <chrono>
 #include <cstddef>
+#include <cstdint>
 #include <iosfwd>
 #include <optional>
 #include <string>
@@ -26,6 +27,8 @@
 #include "duplexfit/point_set.hpp"
 #include "duplexfit/preprocess.hpp"
 #include "duplexfit/section.hpp"
+#include "duplexfit/shell.hpp"
+#include "duplexfit/sl1.hpp"
 #include "duplexfit/slice.hpp"
 
 namespace duplexfit {
@@ -166,9 +169,22 @@ void writeSectionJson(std::ostream& out, const SectionJobResult& result, const s
 
 struct SliceJobOptions {
   SliceOptions slice;
-  double units = 1.0;         ///< millimetres per CLI unit
-  double maskPixel = 0.0;     ///< > 0: PNG masks of this pixel size
+  /// Where the outputs are placed (default: on the plate) and the scale to output units. The job sets
+  /// placement.plateStep to maskPixel, so an automatic plate is a whole number of mask pixels.
+  PlacementOptions placement;
+  double units = 1.0;         ///< millimetres per output unit (the CLI file's $$UNITS)
+  std::string unitsName = "mm";  ///< the output unit's name for the report ("mm", "in", "um")
+  double maskPixel = 0.0;     ///< > 0: PNG masks of the whole plate with this pixel size (output units)
   bool svgPerLayer = false;   ///< svg/layer_00001.svg, ... instead of slices.svg
+  /// Drain holes (shell.hpp; shell mode with an inward offset only): the layers are then the contours of
+  /// the drained solid {g' ≥ 0}, g' = min(f, δ − f, hole distances), the function `fit --shell` meshes (one
+  /// level, 0: the slices' levels are {0}).
+  std::vector<DrainHole> drainHoles;
+  /// Non-empty: also an SLA package (sl1.hpp, needs libzip) of this name in the output folder, a plain
+  /// file name ending in .sl1 or .sl1s. It needs uniform layers, millimetres and plate placement; the plate
+  /// is then the display (sl1Options.printer: displayWidth × displayHeight), which the part must fit.
+  std::string sl1;
+  Sl1Options sl1Options;  ///< its printer and exposure settings (hollow: set by the job from the mode)
 };
 
 /// Summary statistics of the layers.
@@ -182,7 +198,9 @@ struct SliceJobResult {
   std::string input;  ///< the field's path, for the report
   std::string deviceSpec;
   SliceJobOptions options;  ///< with the options the slicer used
-  SliceResult slices;
+  SliceResult slices;       ///< in model coordinates
+  SlicePlacement placement;
+  SliceResult placed;       ///< in output coordinates (applyPlacement): what the files hold
   std::size_t layersTouchingBorder = 0;
   double secondsSlice = 0.0;
   double secondsTotal = 0.0;  ///< from the SliceJob's construction to the end of run()
@@ -192,14 +210,17 @@ struct SliceJobResult {
 /// that an output folder can be staged before run() does the work. `field` must outlive the job.
 class SliceJob {
  public:
-  /// @throws InvalidArgument (bad options, naming the CLI's option for the masks: "--png-xy ... gives masks
-  /// larger than 65536 pixels a side"), DeviceError.
+  /// @throws InvalidArgument (bad options, naming the CLI's options: "--png-xy ... gives masks larger than
+  /// 65536 pixels a side", "--scale", "--units", "--plate", a part's box larger than the plate; with --sl1:
+  /// no libzip in this build, adaptive layers, units other than mm, a part's box larger than the display or
+  /// taller than the printer), DeviceError.
   SliceJob(const Device& device, const ImplicitField& field, const SliceJobOptions& options,
            std::string input = std::string());
   /// The options with every default resolved.
-  const SliceOptions& options() const noexcept { return slicer_.options(); }
-  /// Messages: what is sliced, one line per layer, a warning when a level set reached the grid border.
-  /// @throws Cancelled when the interrupter says so.
+  const SliceOptions& options() const noexcept { return options_.slice; }
+  /// Messages: what is sliced, one line per layer, a warning when a level set reached the grid border, the
+  /// placement. @throws Cancelled when the interrupter says so; InvalidArgument when the sliced part does
+  /// not fit on the given plate.
   SliceJobResult run(Interrupter* interrupter = nullptr) const;
 
  private:
@@ -211,17 +232,35 @@ class SliceJob {
 SliceJobResult runSliceJob(const Device& device, const ImplicitField& field, const SliceJobOptions& options,
                            const std::string& input = std::string(), Interrupter* interrupter = nullptr);
 
+/// The masks' raster: the plate at the mask pixel size. Pixel (0, 0)'s outer corner is `origin` (the
+/// plate's min x, max y); columns go +x, rows go −y.
+struct SliceMaskInfo {
+  Eigen::AlignedBox2d area;   ///< output coordinates covered by the image (the plate, rounded up to pixels)
+  Eigen::Vector2d origin = Eigen::Vector2d::Zero();
+  double pixel = 0.0;         ///< output units
+  int width = 0, height = 0;  ///< pixels
+  std::uint32_t pixelsPerMetre = 0;  ///< the pHYs value (0: none written, out of PNG's range)
+  double dpi = 0.0;
+};
+/// The raster of a job's masks (result.options.maskPixel > 0). @throws InvalidArgument for a raster over
+/// 65536 pixels a side.
+SliceMaskInfo sliceMaskInfo(const SliceJobResult& result);
+
 /// What writing the slice outputs measured (mask areas go to the report).
 struct SliceOutputs {
-  std::vector<double> maskArea;  ///< per layer, when masks were written
+  std::vector<double> maskArea;  ///< per layer, when masks were written (output units²)
+  std::optional<Sl1Summary> sl1; ///< the SLA package, when one was asked for
   double secondsWrite = 0.0;
   std::string report;            ///< slices.json's content
 };
-/// Writes slices.cli, slices.svg (or svg/), masks/ and slices.json into `folder` and commits it.
-/// @throws IoError.
+/// Writes slices.cli, slices.svg (or svg/), masks/, the SLA package and slices.json into `folder` and commits
+/// it (all or nothing). @throws IoError, InvalidArgument (the SLA package: writeSl1).
 SliceOutputs writeSliceOutputs(const SliceJobResult& result, StagedFolder& folder);
-/// slices.json's content (also the --json output). seconds.total = result.secondsTotal + writeSeconds.
+/// slices.json's content (also the --json output). seconds.total = result.secondsTotal + writeSeconds. The
+/// slicer's parameters (cusp, grid, layer limits, start, end, levels) are in model units; the layers
+/// (heights, bottom/top/thickness, areas) in output coordinates; "placement" maps one to the other and
+/// "masks" (when maskArea is given) describes the raster, "sl1" (when `sl1` is given) the SLA package.
 void writeSliceJson(std::ostream& out, const SliceJobResult& result, const std::vector<double>& maskArea = {},
-                    double writeSeconds = 0.0);
+                    double writeSeconds = 0.0, const Sl1Summary* sl1 = nullptr);
 
 }  // namespace duplexfit

@@ -5,13 +5,13 @@
 #pragma once
 
 #include <cstddef>
-#include <functional>
 #include <memory>
 #include <string>
 
 #include <Eigen/Core>
 
 #include "duplexfit/device.hpp"
+#include "duplexfit/interrupter.hpp"
 #include "duplexfit/sparse.hpp"
 #include "duplexfit/types.hpp"
 
@@ -145,16 +145,16 @@ class BlockJacobiPreconditioner final : public Preconditioner {
 /// Why a CG solve stopped.
 enum class StopReason {
   Converged,       ///< the recursive residual met ‖r‖ ≤ tol·‖b‖ (or max|r_i| ≤ the absolute tolerance) and
-                   ///< the true residual b − Ax, recomputed, is within 10× of it (float rounding makes the
-                   ///< two drift apart; the solver restarts from the true residual up to 3 times before
-                   ///< reporting Stagnated). SolveStats::relativeResidual is always the true one.
+                   ///< so does the true residual b − Ax, recomputed (float rounding makes the two drift
+                   ///< apart; the solver restarts from the true residual up to 3 times before reporting
+                   ///< Stagnated). SolveStats::relativeResidual is always the true one.
   ZeroRhs,         ///< b = 0: x = 0 is exact
   IterationLimit,  ///< maxIterations reached
   Breakdown,       ///< pᵀAp ≤ 0 or rᵀz ≤ 0: the matrix or preconditioner is not positive definite
   NonFinite,       ///< a NaN or Inf appeared (overflow, or non-finite input vectors)
   Stagnated,       ///< the recursive residual met the tolerance but the true one stayed above it
                    ///< after restarts (the precision cannot reach the tolerance)
-  Cancelled        ///< the progress callback returned false
+  Cancelled        ///< the Interrupter interrupted
 };
 const char* stopReasonName(StopReason reason) noexcept;
 
@@ -166,8 +166,8 @@ struct SolverOptions {
   double absoluteTolerance = 0.0;
   bool useFusedKernels = true;       ///< fused CG updates (fewer passes over memory) where possible
   SpmvKernel spmvKernel = SpmvKernel::Auto;
-  /// Called every progressInterval iterations with (iteration, relative residual); return false to stop.
-  std::function<bool(int, double)> progress;
+  /// Every progressInterval iterations solveCg sends the interrupter a FitEvent{Solve, iteration,
+  /// relative residual} and then polls wasInterrupted(); 0: never.
   int progressInterval = 50;
 };
 
@@ -180,13 +180,15 @@ struct SolveStats {
   double recurrenceResidual = 0.0;   ///< the solver's own ‖r‖/‖b‖ when it stopped
   double maxResidual = 0.0;          ///< max_i |b − Ax|_i of the returned x (true residual)
   double tolerance = 0.0;            ///< the tolerance actually used
+  double absoluteTolerance = 0.0;    ///< the absolute tolerance used (0: none)
   double seconds = 0.0;
 };
 
 /// Solves A x = b by preconditioned conjugate gradients; x holds the start vector on entry.
 /// @param preconditioner nullptr: Jacobi built from A.
+/// @param interrupter may be null; when it interrupts, the solve stops with StopReason::Cancelled.
 /// @throws InvalidArgument on mismatched sizes, devices or precisions; DeviceError on OpenCL failures.
 SolveStats solveCg(const DeviceCsr& a, const DeviceVector& b, DeviceVector& x, const SolverOptions& options = {},
-                   const Preconditioner* preconditioner = nullptr);
+                   const Preconditioner* preconditioner = nullptr, Interrupter* interrupter = nullptr);
 
 }  // namespace duplexfit

@@ -14,8 +14,10 @@
 
 #include <Eigen/Core>
 
+#include "duplexfit/interrupter.hpp"
 #include "duplexfit/mesh.hpp"
 #include "duplexfit/types.hpp"
+#include "duplexfit/resources.hpp"
 
 namespace duplexfit {
 
@@ -115,6 +117,8 @@ struct MeasureOptions {
   std::uint64_t seed = 1;
   /// Also sample every vertex referenced by a face (Metro's vertex sampling).
   bool includeVertices = true;
+  /// The memory budget, checked before sampling (samples, their distances, the other mesh's tree).
+  ResourceLimits limits{};
 };
 
 /// Samples of a mesh: the referenced vertices first (when included), then the face samples.
@@ -148,9 +152,11 @@ struct DistanceReport {
 };
 
 /// Metro (§8.2): samples both meshes (options; B with seed + 1) and takes exact distances to the
-/// other mesh through a BVH. Mean and RMS are over all samples (vertices included).
-/// @throws InvalidArgument for invalid meshes ("first mesh"/"second mesh") or options.
-DistanceReport measureDistance(const Mesh& a, const Mesh& b, const MeasureOptions& options = {});
+/// other mesh through a BVH. Mean and RMS are over all samples (vertices included). `interrupter` is
+/// polled every 65,536 samples with the percent done.
+/// @throws InvalidArgument for invalid meshes ("first mesh"/"second mesh") or options; Cancelled.
+DistanceReport measureDistance(const Mesh& a, const Mesh& b, const MeasureOptions& options = {},
+                               Interrupter* interrupter = nullptr);
 
 /// Accuracy of an offset mesh O against its surface mesh S, for signed δ (positive = inward, as in
 /// FitOptions::offsets).
@@ -182,9 +188,9 @@ struct OffsetReport {
 
 /// Samples O (options) and measures it against S. S should be closed and outward-oriented.
 /// @throws InvalidArgument for invalid meshes ("offset mesh"/"surface mesh"), δ = 0 or not finite,
-/// or bad options.
+/// or bad options; Cancelled when `interrupter` (polled every 65,536 samples) says stop.
 OffsetReport measureOffset(const Mesh& offset, const Mesh& surface, double delta,
-                           const MeasureOptions& options = {});
+                           const MeasureOptions& options = {}, Interrupter* interrupter = nullptr);
 
 /// The per-component part of measureOffset (and of selfCheck, self_check.hpp): for every connected
 /// component of O, in label order (`labels` and `count` as faceComponents(offset) returns them), the
@@ -198,10 +204,47 @@ std::vector<OffsetReport::Component> offsetComponents(const Mesh& offset, const 
                                                       std::size_t maxVertices = 0);
 
 // ---------------------------------------------------------------------------------------------
+// Triangle quality
+
+/// Whether a triangle is degenerate once its corners are rounded to float32 (as STL and binary PLY store
+/// them): the rounded corners are not three distinct points, or their cross product (b − a) × (c − a)
+/// is zero in float32 arithmetic, or at most 1e-12 · (longest edge)² in double (validateMesh's rule).
+bool float32Degenerate(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c);
+
+/// The smallest interior angle of triangle (a, b, c), in degrees (0 for coincident corners).
+double minAngleDegrees(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c);
+
+/// Shape statistics of a mesh's triangles.
+struct TriangleQuality {
+  std::size_t faces = 0;
+  /// Faces that are degenerate in float32 (float32Degenerate; repeated indices included).
+  std::size_t float32DegenerateFaces = 0;
+  std::int64_t firstFloat32DegenerateFace = -1;  ///< −1 when none
+  double sliverAngle = 1.0;  ///< degrees: the threshold `slivers` counts below
+  /// Faces that are not float32-degenerate with a minimum angle below sliverAngle.
+  std::size_t slivers = 0;
+  /// Faces with a minimum angle below 1°, 5° and 10° (cumulative; float32-degenerate faces included).
+  std::size_t below1 = 0, below5 = 0, below10 = 0;
+  double minAngle = 0.0;        ///< degrees, over the faces that are not float32-degenerate (0: none)
+  std::int64_t worstFace = -1;  ///< the face attaining minAngle
+  double shortestEdge = 0.0;    ///< over all faces with distinct indices (0 for an empty mesh)
+};
+
+/// TriangleQuality of a mesh (indices must be valid: validateMesh first), slivers below `sliverAngle`
+/// degrees.
+TriangleQuality triangleQuality(const Mesh& mesh, double sliverAngle = 1.0);
+
+// ---------------------------------------------------------------------------------------------
 // Mesh check
 
 /// Options of checkMesh.
 struct CheckOptions {
+  /// A sliver is a triangle whose smallest angle is below this many degrees (reported in
+  /// MeshCheck::quality).
+  double sliverAngle = 1.0;
+  /// Slivers make the mesh invalid only when they are more than this share of its faces (0.001: one in a
+  /// thousand; docs/method.md §7). Float32-degenerate triangles are always an error.
+  double maxSliverShare = 0.001;
   bool selfIntersections = true;  ///< look for intersecting triangle pairs (the slowest check)
   std::size_t listedPairs = 20;   ///< how many intersecting pairs to list in MeshCheck::pairs
   /// Work bound of the self-intersection test, in candidate pairs (faces with overlapping boxes): each
@@ -210,12 +253,17 @@ struct CheckOptions {
   /// corners). Meshes without such clusters never reach it; when a face does, the count is a lower bound
   /// (MeshCheck::selfIntersectionsComplete is false).
   std::size_t candidatePairBudget = 400'000'000;
+  /// The memory budget, checked before the tree and the per-face tables are built.
+  ResourceLimits limits{};
 };
 
 /// The facts checkMesh reports.
 struct MeshCheck {
   MeshTopology topology;        ///< from analyzeTopology
   MeshValidation validation;    ///< from validateMesh (degenerate triangles)
+  TriangleQuality quality;      ///< float32-degenerate triangles, slivers, the angle histogram
+  /// quality.slivers exceeds CheckOptions::maxSliverShare of the faces.
+  bool tooManySlivers = false;
   bool watertight = false;      ///< no boundary and no non-manifold edges
   bool manifold = false;        ///< 2-manifold at every edge and vertex
   bool oriented = false;        ///< neighbouring faces traverse their shared edge in opposite directions
@@ -240,11 +288,13 @@ struct MeshCheck {
   std::vector<std::pair<std::int64_t, std::int64_t>> pairs;
   /// No non-degenerate face: nothing to be valid (watertight is then false too).
   bool empty() const noexcept { return topology.faces == topology.degenerateFaces; }
-  /// Not empty, closed, manifold, oriented, outward and free of self-intersections (when checked; a check
-  /// that stopped at the work bound without finding any does not count as free of them).
+  /// Not empty, closed, manifold, oriented, outward, free of self-intersections (when checked; a check
+  /// that stopped at the work bound without finding any does not count as free of them), without a
+  /// float32-degenerate triangle and without too many slivers.
   bool valid() const noexcept {
     return !empty() && watertight && manifold && oriented && outward && selfIntersections == 0 &&
-           (!selfIntersectionsChecked || selfIntersectionsComplete);
+           (!selfIntersectionsChecked || selfIntersectionsComplete) && quality.float32DegenerateFaces == 0 &&
+           !tooManySlivers;
   }
 };
 

@@ -52,4 +52,8 @@ double signedVolume(const Mesh& mesh);
 /// Total triangle area.
 double surfaceArea(const Mesh& mesh);
 
+/// The mesh with only the faces f where keep[f] is non-zero (keep has one entry per face); the vertices no
+/// kept face uses are removed, and vertices and faces keep their order.
+Mesh keepFaces(const Mesh& mesh, const std::vector<char>& keep);
+
 }  // namespace duplexfit

@@ -8,6 +8,10 @@
 //     options.fit.offsets = {0.02};
 //     const duplexfit::PipelineResult result = duplexfit::runPipeline(device, "cloud.ply", options);
 //     duplexfit::writePipelineOutputs(result, "out");  // zero.ply, offset1.ply, field.dpxf, report.json
+//
+// With options.shell, also the printable shell (shell.hpp) of the zero level and the smallest inward
+// offset, with drain holes cut in the field (shell.ply, report.json's "shell"); `duplexfit mesh --shell`'s
+// job, the shell of a saved field, is runShellPipeline.
 #pragma once
 
 #include <cstddef>
@@ -18,19 +22,28 @@
 
 #include "duplexfit/atomic_file.hpp"
 #include "duplexfit/device.hpp"
+#include "duplexfit/distributed.hpp"
 #include "duplexfit/field.hpp"
 #include "duplexfit/fit.hpp"
 #include "duplexfit/interrupter.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/mesh.hpp"
+#include "duplexfit/mesh_sampling.hpp"
 #include "duplexfit/point_set.hpp"
 #include "duplexfit/preprocess.hpp"
 #include "duplexfit/self_check.hpp"
+#include "duplexfit/shell.hpp"
 #include "duplexfit/surfaces.hpp"
 
 namespace duplexfit {
 
 struct PipelineOptions {
+  /// What the input file holds: Auto (detectInputKind: .stl, .obj and a .ply with faces are meshes), Cloud
+  /// or Mesh. A mesh is sampled into an oriented cloud first (sampleMeshCloud with meshSampling).
+  InputKind input = InputKind::Auto;
+  /// How a mesh input is sampled and checked. With estimateNormals its orientation policy Require becomes
+  /// Keep (the face normals are replaced anyway).
+  MeshSampleOptions meshSampling{};
   /// The fit (offsets, levels, solver, ...). Its precision is used by every stage (normals, denoise,
   /// surfaces): the precision fields of the other options are ignored.
   FitOptions fit{};
@@ -43,9 +56,23 @@ struct PipelineOptions {
   /// not changed: the CLI's --denoise also defaults --smoothing to 0.2.
   bool denoise = false;
   BilateralOptions denoiseOptions{};
+  /// Far outliers (findOutliers) are always looked for and reported; with removeOutliers they are dropped
+  /// before anything else, otherwise a warning names them.
+  bool removeOutliers = false;
+  OutlierOptions outliers{};
   SurfaceOptions surface{};
   /// Clean-up and self-check of the meshes (cleanAndSelfCheck); the CLI's defaults.
   SelfCheckOptions selfCheck = defaultSelfCheck();
+  /// Also the printable shell: the zero mesh and the mesh of the smallest inward offset (δ > 0, which the
+  /// fit must have: else runPipeline throws InvalidArgument before reading) joined into one closed mesh,
+  /// cut by shellOptions' drain holes in the field (duplex mode only). shellOptions.offset is ignored (the
+  /// chosen δ is used) and so is minCavityFraction (the offset meshes' clean-up fraction is used).
+  bool shell = false;
+  ShellOptions shellOptions{};
+  /// The memory budget of every stage (--max-memory): when its maxMemoryBytes is set it replaces those of
+  /// meshSampling, fit, normals, denoiseOptions and surface.polygonize. The grid's estimate is checked before
+  /// the fit, so that a grid too large for it is refused before minutes of fitting.
+  ResourceLimits limits{};
 
   static SelfCheckOptions defaultSelfCheck() {
     SelfCheckOptions o;
@@ -63,14 +90,28 @@ struct PipelineSurface {
   std::size_t field = 0;  ///< index into PipelineResult::fields
   double iso = 0.0;       ///< the level of that field (δ in duplex mode, 0 in separate mode)
   double offset = 0.0;    ///< δ of the surface (0 for the zero level), input units
-  Mesh mesh;              ///< after the clean-up (small components dropped)
+  Mesh mesh;              ///< after the clean-up (small components dropped) and finishSurfaces
   MeshTopology topology;
+  MeshFinishReport finish;  ///< cleaning, simplification and the deviation from the level set
+};
+
+/// The printable shell of a pipeline run (PipelineOptions::shell).
+struct PipelineShell {
+  std::size_t surface = 0;  ///< index into PipelineResult::surfaces of the inner surface (the offset)
+  Mesh mesh;
+  ShellReport report;
+  std::string note;         ///< which offset was chosen when several are inward ("" when one)
 };
 
 struct PipelineReport {
   std::string input;           ///< the input path ("" for a PointSet input)
-  PointReadReport read;        ///< for a PointSet input: points and normals only
+  PointReadReport read;        ///< for a PointSet input: points and normals only; for a mesh: the samples
+  /// A mesh input: its format, and what sampleMeshCloud found and did (warnings included).
+  std::optional<MeshSampleReport> mesh;
+  MeshFormat meshFormat = MeshFormat::Auto;
   std::size_t duplicatesMerged = 0;
+  OutlierReport outliers;              ///< far outliers of the input (rows of the input as read)
+  std::size_t outliersRemoved = 0;     ///< with PipelineOptions::removeOutliers
   std::optional<NormalReport> normals;   ///< when estimated
   std::optional<BilateralReport> denoise;  ///< when denoised
   bool separate = false;
@@ -87,7 +128,10 @@ struct PipelineReport {
   PolygonizeStats gridStats;
   int boxGrowths = 0;
   bool touchesBoundary = false;
+  /// The distributed fit's partition and per-rank figures (runDistributedPipeline only).
+  std::optional<DistributedReport> distributed;
   double secondsRead = 0.0, secondsPolygonize = 0.0;
+  double secondsFinish = 0.0;  ///< finishSurfaces on every mesh
   double secondsTotal = 0.0;  ///< the whole runPipeline call
 
   /// Every level's CG converged (or needed no iteration), over all fits.
@@ -97,45 +141,86 @@ struct PipelineReport {
 struct PipelineResult {
   std::vector<ImplicitField> fields;     ///< one (duplex) or 1 + offsets (separate, the zero level's first)
   std::vector<PipelineSurface> surfaces; ///< the zero level, then one per offset
+  std::optional<PipelineShell> shell;    ///< with PipelineOptions::shell
   PipelineReport report;
 };
 
-/// Runs the pipeline on the cloud at `inputPath` (PLY or XYZ; it needs normals unless
-/// options.estimateNormals). Progress lines, fit events and cancellation go through `interrupter`
+/// Runs the pipeline on the cloud or mesh at `inputPath` (a cloud: PLY or XYZ, with normals unless
+/// options.estimateNormals; a mesh: STL, OBJ or PLY with faces, sampled by sampleMeshCloud, whose warnings
+/// go to the interrupter's message lines and the report). Progress lines, fit events and cancellation go through `interrupter`
 /// (nullptr: none). @throws IoError (reading), InvalidArgument (bad options, unfittable cloud; the
-/// message names the file), DeviceError, Cancelled.
+/// message names the file; options.surface.finish is validated before any work), DeviceError, Cancelled.
 PipelineResult runPipeline(const Device& device, const std::string& inputPath, const PipelineOptions& options = {},
                            Interrupter* interrupter = nullptr);
 /// The same for points in memory (with normals unless options.estimateNormals).
 PipelineResult runPipeline(const Device& device, const PointSet& points, const PipelineOptions& options = {},
                            Interrupter* interrupter = nullptr);
 
+/// `duplexfit fit` over the ranks of `comm` (docs/method.md, "Distributed fit"): each rank reads its own
+/// rows of the PLY cloud at `inputPath` (readPlyVertexRows), the points move to the owners of their Morton
+/// ranges, fitDistributed fits the one field that every rank then holds, and rank 0 alone extracts the
+/// meshes from it (the self-check's input points are a proxy: gathered cell centroids). The other ranks'
+/// results carry the field and the report but no surfaces. Clouds only; --separate, --estimate-normals,
+/// --denoise, --remove-outliers, --shell and --offset-correction are InvalidArgument (not distributed yet).
+/// Outlier detection is skipped. @throws as runPipeline.
+PipelineResult runDistributedPipeline(const Device& device, Communicator& comm, const std::string& inputPath,
+                                      const PipelineOptions& options, const DistributedOptions& distributed,
+                                      Interrupter* interrupter = nullptr);
+
 /// Output names: meshes "zero.EXT", "offsetJ.EXT"; fields "field.dpxf", then (separate) "field_offsetJ.dpxf".
 std::vector<std::string> pipelineMeshNames(const PipelineResult& result, const std::string& meshFormat = "ply");
 std::vector<std::string> pipelineFieldNames(const PipelineResult& result);
+/// The shell's output name, "shell.EXT" (written when result.shell is set).
+std::string pipelineShellName(const std::string& meshFormat = "ply");
 
 /// Writes report.json's content (the keys of the CLI's report, docs in README) to `out`. `writeSeconds`
 /// goes to seconds.write and is added to seconds.total.
 void writePipelineReport(std::ostream& out, const PipelineResult& result, const std::string& meshFormat = "ply",
                          double writeSeconds = 0.0);
 
-/// Writes the meshes (meshFormat: "ply", "obj" or "stl"), the fields and report.json into `folder` and
-/// commits it. @throws InvalidArgument for another format, IoError.
+/// Writes the meshes (meshFormat: "ply", "obj" or "stl"; the shell too), the fields and report.json into
+/// `folder` and commits it. @throws InvalidArgument for another format, IoError.
 void writePipelineOutputs(const PipelineResult& result, StagedFolder& folder, const std::string& meshFormat = "ply");
 /// The same into the folder `outDir` (created when missing); nothing is left there on failure.
 void writePipelineOutputs(const PipelineResult& result, const std::string& outDir,
                           const std::string& meshFormat = "ply");
 
-/// `duplexfit mesh`'s job: the level set {f = iso} of a field, small components dropped.
+/// `duplexfit mesh`'s job: the level set {f = iso} of a field, small components dropped, then cleaned,
+/// simplified when asked and measured (options.finish, finishSurfaces).
 struct MeshPipelineResult {
   Mesh mesh;
   MeshTopology topology;
   DroppedComponents dropped;
+  MeshFinishReport finish;
   SurfaceResult extraction;  ///< grid and statistics (its meshes are moved out: empty)
 };
-/// @throws InvalidArgument (minComponent not in [0, 1), bad options), DeviceError, Cancelled.
+/// @throws InvalidArgument (minComponent not in [0, 1), bad options, a simplification request without
+/// meshoptimizer in the build: before any work), DeviceError, Cancelled.
 MeshPipelineResult runMeshPipeline(const Device& device, const ImplicitField& field, double iso,
                                    const SurfaceOptions& options = {}, double minComponent = 0.0,
                                    Interrupter* interrupter = nullptr);
+
+/// `duplexfit mesh --shell`'s job: the levels 0 and δ = options.offset of a saved field in one pass, small
+/// components dropped as the fit does (minComponent on the zero mesh; the larger of it and the fit's default
+/// offset fraction, 0.001, on the offset mesh and for the drained mesh's cavities), joined into the shell
+/// (buildShell) or, with drain holes, the drained solid polygonized on the same grid (drainShell).
+struct ShellPipelineResult {
+  ShellResult shell;
+  DroppedComponents droppedZero, droppedOffset;
+  SurfaceResult extraction;  ///< grid and statistics of the levels' extraction (its meshes are moved out)
+  std::string note;          ///< when δ is not one of the field's fitted offsets ("" otherwise)
+};
+/// @throws InvalidArgument (δ not > 0: the message names --iso; bad options), DeviceError, Cancelled.
+ShellPipelineResult runShellPipeline(const Device& device, const ImplicitField& field, const ShellOptions& options,
+                                     const SurfaceOptions& surface = {}, double minComponent = 0.0,
+                                     Interrupter* interrupter = nullptr);
+
+/// `duplexfit mesh --json`: the mesh's file, iso, topology, dropped components, grid and its finishing
+/// report (cleaning, simplification, level-set deviation: the keys of report.json's "meshes" entries).
+void writeMeshPipelineJson(std::ostream& out, const MeshPipelineResult& result, const std::string& outputPath,
+                           double iso);
+/// `duplexfit mesh --shell --json`: the shell's file, volumes, validity, drain holes and grid (the keys of
+/// report.json's "shell").
+void writeShellPipelineJson(std::ostream& out, const ShellPipelineResult& result, const std::string& outputPath);
 
 }  // namespace duplexfit

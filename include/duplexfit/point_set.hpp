@@ -17,6 +17,10 @@ class PointSet {
   /// Normalises the normals (lengths ≤ 1e-12 become zero).
   /// @throws InvalidArgument on a row-count mismatch or a non-finite value (naming the point index).
   PointSet(Points positions, Points normals);
+  /// Rows taken from other PointSets (normals already unit or zero), checked but not normalised again:
+  /// normalising is not idempotent in the last bit, and the distributed fit must see the same normals as
+  /// a fit of the whole cloud. @throws as the constructor.
+  static PointSet fromNormalized(Points positions, Points normals);
 
   std::size_t size() const noexcept { return static_cast<std::size_t>(positions_.rows()); }
   const Points& positions() const noexcept { return positions_; }

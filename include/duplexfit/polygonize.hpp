@@ -10,7 +10,9 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "duplexfit/interrupter.hpp"
 #include "duplexfit/mesh.hpp"
+#include "duplexfit/resources.hpp"
 #include "duplexfit/types.hpp"
 
 namespace duplexfit {
@@ -19,9 +21,6 @@ namespace duplexfit {
 /// row i). Called from the calling thread only, with batches of up to PolygonizeOptions::batchSize
 /// points (whole coarse lattices, whole groups of refined blocks, or z-slabs of tiles).
 using FieldSampler = std::function<void(const Points& queries, Eigen::VectorXd& values)>;
-
-/// Progress report: fraction in [0, 1]. Return false to cancel (polygonize then throws Cancelled).
-using PolygonizeProgress = std::function<bool(double fraction)>;
 
 /// A regular grid of cells(0)×cells(1)×cells(2) box-shaped cells spanning box exactly; nodes are
 /// numbered 0..cells(a) along each axis a, node i sits at box.min() + i·cellSize() (the last node
@@ -77,7 +76,29 @@ struct PolygonizeOptions {
   std::int64_t batchSize = std::int64_t{1} << 20;
   /// OpenMP threads for extraction; 0 = the OpenMP default. The output does not depend on it.
   int threads = 0;
+  /// The memory budget: polygonize refuses a grid whose estimate (estimatePolygonize) exceeds it.
+  ResourceLimits limits{};
 };
+
+/// What polygonize is expected to hold for a grid, before it samples anything.
+struct PolygonizeEstimate {
+  double nodes = 0.0;        ///< nodes of the grid
+  double storedNodes = 0.0;  ///< node values expected in memory (tiles; all of them when not adaptive)
+  double triangles = 0.0;    ///< triangles of all meshes
+  double storeBytes = 0.0;   ///< node store: coarse lattice, tile tables, tiles and cell marks
+  double meshBytes = 0.0;    ///< the meshes and, during extraction, the per-thread pieces and welding
+  double bytes() const noexcept { return storeBytes + meshBytes; }
+};
+
+/// The estimate for `isoCount` level sets: in adaptive mode, the refined tiles are those a surface of
+/// about the grid box's own area crosses per level set (twice that, for the neighbours refined with
+/// them), and the triangles about four per boundary cell of the box per level set (marching tetrahedra
+/// make about 8 a cell² of surface). A level set of much larger area (a sponge) can exceed it; a sphere filling the box uses about half of it.
+PolygonizeEstimate estimatePolygonize(const GridSpec& grid, std::size_t isoCount, const PolygonizeOptions& options = {});
+
+/// Throws MemoryLimitExceeded ("polygonize: the NXxNYxNZ grid ... needs about ...") when the estimate is over
+/// options.limits; polygonize calls it before it allocates, the pipelines before the fit.
+void checkPolygonizeMemory(const GridSpec& grid, std::size_t isoCount, const PolygonizeOptions& options);
 
 /// What the sampling and extraction did.
 struct PolygonizeStats {
@@ -137,13 +158,14 @@ struct PolygonizeResult {
 /// @param grid       the grid, validated first
 /// @param isoValues  the levels c, at least one, finite; duplicates give duplicate meshes
 /// @param options    sampling options, validated first
-/// @param progress   optional; called from the calling thread between batches and phases
-/// @throws InvalidArgument for a bad grid, option or iso list, for a sampler that returns the wrong
+/// @param interrupter optional; polled from the calling thread between batches and phases with the percent done
+/// @throws MemoryLimitExceeded (an InvalidArgument) when estimatePolygonize exceeds options.limits;
+///         InvalidArgument for a bad grid, option or iso list, for a sampler that returns the wrong
 ///         number of values, or for a non-finite value (naming the grid node and its position);
-///         Cancelled when progress returns false.
+///         Cancelled when the interrupter interrupts.
 PolygonizeResult polygonize(const FieldSampler& sampler, const GridSpec& grid,
                             const std::vector<double>& isoValues,
                             const PolygonizeOptions& options = {},
-                            const PolygonizeProgress& progress = {});
+                            Interrupter* interrupter = nullptr);
 
 }  // namespace duplexfit

@@ -6,10 +6,13 @@
 
 #include <cstddef>
 #include <string>
+#include <vector>
 
+#include "duplexfit/interrupter.hpp"
 #include "duplexfit/device.hpp"
 #include "duplexfit/point_set.hpp"
 #include "duplexfit/types.hpp"
+#include "duplexfit/resources.hpp"
 
 namespace duplexfit {
 
@@ -35,6 +38,8 @@ struct BilateralOptions {
   /// (estimateNormals' PCA with `normalK` neighbours), each signed to agree with its input normal.
   bool reestimateNormals = false;
   int normalK = 15;
+  /// The memory budget, checked before the first pass (about 300 bytes a point).
+  ResourceLimits limits{};
 };
 
 /// What bilateralFilter did: the parameters actually used and the effect.
@@ -67,8 +72,14 @@ struct BilateralReport {
 /// unless options.reestimateNormals. Points whose normal is zero contribute K_q(p) = p.
 /// @throws InvalidArgument on options out of range, fewer than 2 points, all points coincident, or a
 /// precision the device lacks (DeviceError); DeviceError on OpenCL failures.
-PointSet bilateralFilter(const PointSet& points, const BilateralOptions& options, const Device& device,
-                         BilateralReport* report = nullptr);
+struct BilateralResult {
+  PointSet points;  ///< the filtered cloud (rows match the input's)
+  BilateralReport report;
+};
+/// @param interrupter may be null; polled before each pass with the percent of the passes done.
+/// @throws as above, and Cancelled when the interrupter interrupts.
+BilateralResult bilateralFilter(const Device& device, const PointSet& points, const BilateralOptions& options = {},
+                                Interrupter* interrupter = nullptr);
 
 /// Options of estimateNormals.
 struct NormalOptions {
@@ -82,6 +93,8 @@ struct NormalOptions {
   /// volume) is an InvalidArgument; when false it keeps the propagated orientation (seed normal up,
   /// +z) and is counted in NormalReport::ambiguousComponents.
   bool requireOutward = true;
+  /// The memory budget, checked before the neighbour searches ((k + 1) neighbours and 2·graphK graph edges a point).
+  ResourceLimits limits{};
 };
 
 /// What estimateNormals did.
@@ -119,7 +132,49 @@ struct NormalReport {
 /// @throws InvalidArgument naming the point for a NaN/Inf coordinate; when k < 3, fewer than k + 1
 /// distinct points, all points on a line, or (with requireOutward) all points on a plane or a component
 /// without an outward side; DeviceError on OpenCL failures or a precision the device lacks.
-PointSet estimateNormals(const Points& points, const NormalOptions& options, const Device& device,
-                         NormalReport* report = nullptr);
+struct NormalResult {
+  PointSet points;  ///< the positions with their estimated unit normals
+  NormalReport report;
+};
+/// @param interrupter may be null; polled between the stages (neighbours, PCA, orientation).
+/// @throws as above, and Cancelled when the interrupter interrupts.
+NormalResult estimateNormals(const Device& device, const Points& points, const NormalOptions& options = {},
+                             Interrupter* interrupter = nullptr);
+
+/// Options of findOutliers.
+struct OutlierOptions {
+  double quantile = 0.005;  ///< per axis, the bulk's box spans the quantiles [quantile, 1 − quantile]
+  double margin = 0.5;      ///< a point more than margin × the bulk box's largest side outside it is an outlier
+  /// Isolated points (specks in empty space, inside the box): a point whose distance to its k-th nearest
+  /// neighbour (k = neighbours) exceeds isolationFactor × the cloud's median of that distance. On the
+  /// shared clouds the largest ratio is 8.5 (maxplanck_12k, a scan's sparse base), 4.7 on a half scan,
+  /// at most 2.3 elsewhere; a speck of up to k points at 20 spacings from the surface reaches 20.
+  /// 0: no isolation test (the O(n) box test only).
+  int neighbours = 8;
+  double isolationFactor = 20.0;
+};
+
+/// The outliers of a cloud: points well outside the box of its bulk (robust quantiles per axis), and
+/// points isolated from the rest (their k-th neighbour distance against the cloud's distribution).
+struct OutlierReport {
+  std::vector<Index> indices;              ///< rows of the outliers (either test), ascending
+  Index worst = 0;                         ///< the row farthest outside the box (when any is)
+  double worstDistance = 0.0;              ///< its distance outside the bulk box (per-axis maximum)
+  Eigen::Vector3d bulkMin = Eigen::Vector3d::Zero(), bulkMax = Eigen::Vector3d::Zero();
+  double quantile = 0.0, margin = 0.0;
+  int neighbours = 0;                      ///< the options' k and factor (0: the isolation test was off)
+  double isolationFactor = 0.0;
+  std::size_t outsideBox = 0;              ///< outliers by the box test
+  std::size_t isolated = 0;                ///< outliers by the isolation test only (inside the box)
+  double medianNeighbourDistance = 0.0;    ///< the cloud's median k-th neighbour distance (0: not measured)
+  Index mostIsolated = 0;                  ///< the isolated point with the largest ratio (when any)
+  double worstIsolation = 0.0;             ///< its k-th neighbour distance / the median
+  /// "3 points far outside the rest of the cloud (worst: point 180 at (10000, 0, 0), ...)" or "no outliers".
+  std::string describe(const Points& positions) const;
+};
+
+/// Finds the outliers: the box test in O(n), the isolation test with one k-nearest-neighbour search (clouds
+/// under 20 points have none). @throws InvalidArgument for bad options.
+OutlierReport findOutliers(const Points& positions, const OutlierOptions& options = {});
 
 }  // namespace duplexfit

@@ -17,6 +17,7 @@
 #include "duplexfit/field.hpp"
 #include "duplexfit/image.hpp"
 #include "duplexfit/types.hpp"
+#include "duplexfit/resources.hpp"
 
 namespace duplexfit {
 
@@ -43,7 +44,7 @@ const char* sectionAxisName(int axis) noexcept;
 
 /// Options of renderSection. Every length is in world units unless it says pixels.
 struct SectionOptions {
-  /// Pixels along the image's longer side (16..16384); the other side follows the rectangle's aspect.
+  /// Pixels along the image's longer side (16..8192); the other side follows the rectangle's aspect.
   int size = 1024;
   /// The colour scale is ±range; 0: the 99th percentile of |f| over the image (a robust max).
   double range = 0.0;
@@ -70,6 +71,8 @@ struct SectionOptions {
   /// Arithmetic of the device evaluation (the Device overload of renderSection; an evaluator passed in
   /// keeps its own).
   Precision precision = Precision::Float;
+  /// The memory budget, checked once the image size is known (about 16 bytes a pixel).
+  ResourceLimits limits{};
 };
 
 /// A rendered section and how its pixels map to the plane.
@@ -111,7 +114,7 @@ void validateSection(const ImplicitField& field, const SectionPlane& plane, cons
 /// Renders the section of `field` on `plane` using an evaluator built for it (reuse one evaluator for
 /// several planes).
 /// @throws InvalidArgument: a plane outside the field's bounds (naming the plane and the box), a size
-/// outside 16..16384, a negative or non-finite range, band, margin or line width, a gamma outside (0, 10], a degenerate or
+/// outside 16..8192, a negative or non-finite range, band, margin or line width, a gamma outside (0, 10], a degenerate or
 /// non-finite rectangle, a field without bounds; DeviceError from the evaluation.
 SectionResult renderSection(const FieldEvaluator& evaluator, const ImplicitField& field, const SectionPlane& plane,
                             const SectionOptions& options = {});

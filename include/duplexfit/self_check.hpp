@@ -53,7 +53,11 @@ struct DroppedComponents {
 /// the remaining vertices and faces keep their order. minAreaFraction = 0 drops nothing (and returns the
 /// mesh unchanged, unused vertices included), and so does a mesh without faces.
 /// @throws InvalidArgument when minAreaFraction is not in [0, 1), or an index is out of range.
-Mesh dropSmallComponents(const Mesh& mesh, double minAreaFraction, DroppedComponents* dropped = nullptr);
+struct DropResult {
+  Mesh mesh;                    ///< what remains
+  DroppedComponents dropped;    ///< what was removed
+};
+DropResult dropSmallComponents(const Mesh& mesh, double minAreaFraction);
 
 struct SelfCheckOptions {
   /// An input point "lands on" a zero-level component when its distance to the component is at most this

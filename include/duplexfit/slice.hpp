@@ -15,10 +15,12 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "duplexfit/interrupter.hpp"
 #include "duplexfit/device.hpp"
 #include "duplexfit/field.hpp"
 #include "duplexfit/image.hpp"
 #include "duplexfit/types.hpp"
+#include "duplexfit/resources.hpp"
 
 namespace duplexfit {
 
@@ -77,6 +79,13 @@ struct SliceOptions {
   int refineSteps = 4;
   /// Most plane samples (and vertices) evaluated in one batch; a finer grid is processed in bands of rows.
   std::size_t batchPoints = std::size_t{1} << 18;
+  /// Plans with more layers (height range / minimum or uniform layer) are refused before any work.
+  std::size_t maxLayers = 1000000;
+  /// A grid step that gives one layer more plane samples than this is refused (2^28: about 2 GB of samples).
+  std::size_t maxPlaneSamples = std::size_t{1} << 28;
+  /// The memory budget, checked before any sampling: one layer's plane samples and every layer's contours
+  /// (estimateSliceBytes); the slice job adds its PNG masks or SL1 images.
+  ResourceLimits limits{};
   /// First and last slicing heights along the axis; NaN: the box's minimum + 10⁻⁶·diagonal and its
   /// maximum (widened by |δ| for an outward shell). Layers are cut at heights < end.
   double start = std::numeric_limits<double>::quiet_NaN();
@@ -126,16 +135,6 @@ struct SliceResult {
   std::size_t vertexCount() const noexcept { return vertices; }
 };
 
-/// Progress after each layer; return false to cancel (slice then throws Cancelled).
-struct SliceProgress {
-  std::size_t layer = 0;  ///< layers done
-  double height = 0.0;    ///< the layer just cut
-  double thickness = 0.0;
-  double fraction = 0.0;  ///< of the height range
-  std::size_t loops = 0;
-};
-using SliceProgressCallback = std::function<bool(const SliceProgress&)>;
-
 /// Any function to slice: values (and ∇f, Hessians when asked) at #Q×3 world points, > 0 inside.
 using FieldFunction = std::function<FieldSamples(const Points& queries, FieldDerivatives derivatives)>;
 
@@ -167,8 +166,10 @@ class Slicer {
 
   /// The contours at one height, with the thickness the layer would get there.
   SliceLayer layerAt(double height) const;
-  /// Every layer from start to end (§10.5 stepping, or uniform).
-  SliceResult run(const SliceProgressCallback& progress = {}) const;
+  /// Every layer from start to end (§10.5 stepping, or uniform). After each layer the interrupter (may be
+  /// null) gets one message line ("  layer 12  height … thickness … loops …  (40%)") and is polled with
+  /// the percent of the height range done. @throws Cancelled when it interrupts.
+  SliceResult run(Interrupter* interrupter = nullptr) const;
   /// The options with defaults resolved (grid, t_min, t_max, start, end).
   const SliceOptions& options() const noexcept;
   /// The iso-values contoured.
@@ -181,9 +182,55 @@ class Slicer {
   std::unique_ptr<Impl> impl_;
 };
 
-/// Slicer(device, field, options).run(progress).
+/// Slicer(device, field, options).run(interrupter).
 SliceResult slice(const Device& device, const ImplicitField& field, const SliceOptions& options,
-                  const SliceProgressCallback& progress = {});
+                  Interrupter* interrupter = nullptr);
+
+// ---- Placement on the build plate -----------------------------------------------------------------
+
+/// Where the layers go in the output files. Output coordinates (x, y, z) are the plane's (u, v) and the
+/// height along the build axis, in output units: output = scale · model + translation.
+enum class SlicePlace {
+  Plate,  ///< the lowest layer's bottom at z = 0 and the part's (u, v) extent centred on the plate [0, W] × [0, D]
+  None    ///< model coordinates (times the scale)
+};
+/// "plate" / "none"; parseSlicePlace throws InvalidArgument naming the text.
+const char* slicePlaceName(SlicePlace place) noexcept;
+SlicePlace parseSlicePlace(const std::string& text);
+/// Millimetres per unit of "mm", "in", "um" (the CLI's $$UNITS); @throws InvalidArgument naming the text.
+double lengthUnitMillimetres(const std::string& name);
+/// "WxD" (also "W,D"; both > 0) as a plate size. @throws InvalidArgument naming the text.
+Eigen::Vector2d parsePlateSize(const std::string& text);
+
+struct PlacementOptions {
+  SlicePlace place = SlicePlace::Plate;
+  double scale = 1.0;  ///< output units per model unit (> 0)
+  /// The plate's size W × D in output units (Plate only); zero: the part's (u, v) extent plus a margin of
+  /// 2 grid steps on each side, rounded up to whole multiples of `plateStep` when that is > 0.
+  Eigen::Vector2d plate = Eigen::Vector2d::Zero();
+  double plateStep = 0.0;
+};
+
+/// A placement: output = scale · model + translation, per output axis (x, y, z) = (u, v, build axis).
+struct SlicePlacement {
+  SlicePlace place = SlicePlace::Plate;
+  double scale = 1.0;
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();  ///< output units
+  /// The build area in output coordinates: [0, W] × [0, D] (Plate); None: the sliced box's plane box
+  /// (planeBox) scaled, grown to hold the part.
+  Eigen::AlignedBox2d plate;
+  bool plateGiven = false;     ///< the plate's size came from the options
+  Eigen::AlignedBox3d part;    ///< the part in output coordinates: the loops' (u, v) extent, first bottom to last top
+  double lowestModel = 0.0;    ///< the lowest layer's bottom in model coordinates (the height that goes to z = 0)
+};
+
+/// The placement of a sliced part. @throws InvalidArgument for a scale ≤ 0, a bad plate size, a plate with
+/// place None, or a part larger than the plate (the message gives both sizes).
+SlicePlacement placeSlices(const SliceResult& result, const PlacementOptions& options);
+/// The result in output coordinates: loops, heights, thicknesses, areas, grid, cusp and layer limits,
+/// start/end, and bounds (set to placement.part, the part's box, in the (u, v, axis) slots). Levels stay
+/// the field's values.
+SliceResult applyPlacement(const SliceResult& result, const SlicePlacement& placement);
 
 // ---- Common Layer Interface (ASCII) -------------------------------------------------------------
 
@@ -195,7 +242,9 @@ struct CliPolyline {
   bool closed = true;
 };
 struct CliLayer {
-  double height = 0.0;  ///< $$LAYER value times units
+  double height = 0.0;  ///< $$LAYER value times units: the layer's top (CLI 2.0: the upper boundary's z)
+  double bottom = 0.0;  ///< the previous layer's top; 0 (the build plate) for the first layer
+  double thickness() const noexcept { return height - bottom; }
   std::vector<CliPolyline> polylines;
 };
 struct CliFile {
@@ -206,11 +255,15 @@ struct CliFile {
 };
 
 /// Writes an ASCII CLI file atomically: header ($$ASCII, $$UNITS, $$VERSION/200, $$LABEL, $$DIMENSION,
-/// $$LAYERS), then $$LAYER/height and one closed $$POLYLINE per loop (the first point repeated at the
-/// end, dir from the orientation). World lengths are taken as millimetres; coordinates are written
-/// divided by `units` (mm per file unit). @throws InvalidArgument (units ≤ 0), IoError naming the path.
-void writeCli(const std::string& path, const SliceResult& result, double units = 1.0);
-/// Reads an ASCII CLI file (coordinates and heights scaled to mm). @throws IoError naming the file and
+/// $$LAYERS), then per layer $$LAYER/top (height + thickness: CLI 2.0 gives a layer's upper boundary) and
+/// one closed $$POLYLINE per loop (the layer's contour at its bottom; the first point repeated at the end,
+/// dir from the orientation). The result's lengths are `resultUnits` millimetres each (1: millimetres);
+/// coordinates are written as lengths · resultUnits / units, `units` being $$UNITS (mm per file unit), so
+/// with resultUnits = units the numbers are the result's own. @throws InvalidArgument (units or
+/// resultUnits ≤ 0), IoError naming the path.
+void writeCli(const std::string& path, const SliceResult& result, double units = 1.0, double resultUnits = 1.0);
+/// Reads an ASCII CLI file (coordinates and heights scaled to mm; a layer's bottom is the previous layer's
+/// top, 0 for the first). @throws IoError naming the file and
 /// line for a missing file, a binary file, a malformed command or a count that does not match.
 CliFile readCli(const std::string& path);
 
@@ -222,8 +275,12 @@ void writeSliceSvg(const std::string& path, const SliceResult& result, int layer
 
 /// A grey mask of one layer over `area` (plane coordinates) with square pixels of size `pixel`: 255 where a
 /// pixel centre lies inside the region (even-odd rule over the loops), 0 elsewhere; row 0 at the top
-/// (largest v). @throws InvalidArgument for pixel ≤ 0 or an image over 65536 pixels a side.
+/// (largest v), so pixel (0, 0)'s outer corner is (area.min u, area.max v). The image has
+/// maskPixels(area, pixel) pixels. @throws InvalidArgument for pixel ≤ 0 or an image over 65536 pixels a side.
 Image rasterizeLayer(const SliceLayer& layer, const Eigen::AlignedBox2d& area, double pixel);
+/// Columns and rows of a mask: ⌈size/pixel⌉ per side, a size within 10⁻⁶ pixel of a whole number of
+/// pixels counting as that number.
+Eigen::Vector2d maskPixels(const Eigen::AlignedBox2d& area, double pixel);
 
 /// The plane box (u, v) of a result's bounds.
 Eigen::AlignedBox2d planeBox(const SliceResult& result);

@@ -6,13 +6,14 @@
 
 #include "duplexfit/device.hpp"
 #include "duplexfit/field.hpp"
+#include "duplexfit/mesh_finish.hpp"
 #include "duplexfit/polygonize.hpp"
 
 namespace duplexfit {
 
 struct SurfaceOptions {
-  /// Grid cell size in input units; 0: min(σ_M/2, min|δ|/4) (docs/method.md §7), kept between the cells of
-  /// minResolution and maxResolution.
+  /// Grid cell size in input units; 0: σ_M/2 (docs/method.md §7), kept between the cells of minResolution
+  /// and maxResolution. The offsets do not enter: the triangle count follows the input, not δ.
   double cell = 0.0;
   /// Cells along the box's longest side; overrides `cell` when > 0.
   int resolution = 0;
@@ -23,12 +24,20 @@ struct SurfaceOptions {
   int minResolution = 128;
   Precision precision = Precision::Float;
   PolygonizeOptions polygonize{};
+  /// What the pipelines (runPipeline, runMeshPipeline) do with each mesh after extraction and the
+  /// small-component drop: cleaning, optional simplification, the deviation from the level set
+  /// (finishSurfaces). extractSurfaces itself returns the marching-tetrahedra meshes as they are.
+  MeshFinishOptions finish{};
 };
 
 /// The grid used for a field: its input bounds enlarged by the largest outward offset, 5% of the largest
 /// side and three cells, with the cell size from the options. extractSurfaces grows it further when a
 /// level set still reaches its boundary.
 GridSpec surfaceGrid(const ImplicitField& field, const std::vector<double>& isoValues,
+                     const SurfaceOptions& options = {});
+/// The same for a field not fitted yet: its input bounds and finest support σ_M in input units
+/// (fitScales(...).sigmaFinest), for estimates before the fit.
+GridSpec surfaceGrid(const Eigen::AlignedBox3d& bounds, double sigmaFinest, const std::vector<double>& isoValues,
                      const SurfaceOptions& options = {});
 
 struct SurfaceResult {
@@ -42,12 +51,12 @@ struct SurfaceResult {
 /// Meshes of {f = iso} for every iso value, in input coordinates, outward oriented (normals toward
 /// decreasing f). @throws InvalidArgument (empty iso list, bad options), DeviceError, Cancelled.
 SurfaceResult extractSurfaces(const Device& device, const ImplicitField& field, const std::vector<double>& isoValues,
-                              const SurfaceOptions& options = {}, const PolygonizeProgress& progress = {});
+                              const SurfaceOptions& options = {}, Interrupter* interrupter = nullptr);
 
 /// The same with an evaluator already built for `field` (FitResult::evaluator: no second upload); its
 /// device and precision are used, options.precision is ignored.
 SurfaceResult extractSurfaces(const FieldEvaluator& evaluator, const ImplicitField& field,
                               const std::vector<double>& isoValues, const SurfaceOptions& options = {},
-                              const PolygonizeProgress& progress = {});
+                              Interrupter* interrupter = nullptr);
 
 }  // namespace duplexfit

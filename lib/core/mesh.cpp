@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numeric>
 #include <string>
 #include <vector>
@@ -246,6 +247,39 @@ std::vector<Index> faceComponents(const Mesh& mesh, std::size_t* count) {
     out[static_cast<std::size_t>(f)] = label[r];
   }
   if (count != nullptr) *count = static_cast<std::size_t>(next);
+  return out;
+}
+
+Mesh keepFaces(const Mesh& mesh, const std::vector<char>& keep) {
+  if (keep.size() != static_cast<std::size_t>(mesh.faces.rows())) {
+    throw InvalidArgument("keepFaces: " + std::to_string(keep.size()) + " flags for " + std::to_string(mesh.faces.rows()) +
+                          " faces");
+  }
+  std::vector<Index> map(static_cast<std::size_t>(mesh.vertices.rows()), -1);
+  Eigen::Index faces = 0;
+  for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) faces += keep[static_cast<std::size_t>(f)] ? 1 : 0;
+  for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
+    if (!keep[static_cast<std::size_t>(f)]) continue;
+    for (int k = 0; k < 3; ++k) map[static_cast<std::size_t>(mesh.faces(f, k))] = 0;
+  }
+  Index vertices = 0;
+  for (Index& m : map) {
+    if (m >= 0) m = vertices++;
+  }
+  Mesh out;
+  out.vertices.resize(vertices, 3);
+  for (std::size_t v = 0; v < map.size(); ++v) {
+    if (map[v] >= 0) out.vertices.row(map[v]) = mesh.vertices.row(static_cast<Eigen::Index>(v));
+  }
+  out.faces.resize(faces, 3);
+  Eigen::Index row = 0;
+  for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
+    if (!keep[static_cast<std::size_t>(f)]) continue;
+    for (int k = 0; k < 3; ++k) {
+      out.faces(row, k) = static_cast<std::int32_t>(map[static_cast<std::size_t>(mesh.faces(f, k))]);
+    }
+    ++row;
+  }
   return out;
 }
 

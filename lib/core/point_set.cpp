@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <sstream>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -54,6 +55,12 @@ std::string describePoint(const Points& p, Eigen::Index i) {
          std::to_string(p(i, 2)) + ")";
 }
 
+std::string describeNumber(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
 }  // namespace
 
 PointSet::PointSet(Points positions, Points normals)
@@ -76,6 +83,21 @@ PointSet::PointSet(Points positions, Points normals)
       normals_.row(i) /= length;
     }
   }
+}
+
+PointSet PointSet::fromNormalized(Points positions, Points normals) {
+  PointSet out;
+  if (positions.rows() != normals.rows()) {
+    throw InvalidArgument("PointSet: " + std::to_string(positions.rows()) + " positions but " +
+                          std::to_string(normals.rows()) + " normals");
+  }
+  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
+    if (!positions.row(i).allFinite()) throw InvalidArgument("PointSet: position of point " + std::to_string(i) + " is not finite");
+    if (!normals.row(i).allFinite()) throw InvalidArgument("PointSet: normal of point " + std::to_string(i) + " is not finite");
+  }
+  out.positions_ = std::move(positions);
+  out.normals_ = std::move(normals);
+  return out;
 }
 
 Eigen::AlignedBox3d PointSet::bounds() const {
@@ -184,6 +206,13 @@ void checkFittable(const PointSet& points, const std::string& source) {
     throw InvalidArgument(source + ": all " + std::to_string(n) +
                           " points are at the same position " + describePoint(p, 0) +
                           "; fitting needs a surface");
+  }
+  // Extents that the float32 device arithmetic and the meshes' units cannot carry (a cloud scaled by
+  // 1e-45 gave empty meshes): refuse them rather than fit nothing.
+  const double side = box.sizes().maxCoeff();
+  if (side < 1e-20 || side > 1e20) {
+    throw InvalidArgument(source + ": the cloud's extent " + describeNumber(side) +
+                          " is outside 1e-20 .. 1e20; rescale the cloud (e.g. to millimetres)");
   }
   // Collinear: the second-largest covariance eigenvalue (a variance) is negligible against L².
   const Eigen::RowVector3d mean = p.colwise().mean();

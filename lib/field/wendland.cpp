@@ -96,7 +96,7 @@ void checkAssemblyArguments(const Points& centres, double sigma, double lambda) 
 /// The assembly over an index of `centres` (rowOf empty) or of a superset of them (rowOf maps each
 /// indexed point to its centre row, −1 for points that are not centres).
 CsrMatrix assemble(const Points& centres, double sigma, double lambda, const NeighborIndex& index,
-                   const std::vector<Index>& rowOf) {
+                   const std::vector<Index>& rowOf, const detail::NonZeroCheck& beforeAllocating = {}) {
   const auto n = static_cast<Index>(centres.rows());
   CsrMatrix a;
   a.rows = n;
@@ -105,6 +105,7 @@ CsrMatrix assemble(const Points& centres, double sigma, double lambda, const Nei
   if (n == 0) return a;
 
   const std::size_t reserve = estimateNonZeros(index, centres, sigma);
+  if (beforeAllocating) beforeAllocating(reserve);
   try {
     a.colIdx.reserve(reserve);
     a.values.reserve(reserve);
@@ -198,14 +199,20 @@ CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
 
 namespace detail {
 
+CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda, const NonZeroCheck& beforeAllocating) {
+  checkAssemblyArguments(centres, sigma, lambda);
+  const NeighborIndex index(centres);
+  return assemble(centres, sigma, lambda, index, {}, beforeAllocating);
+}
+
 CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda, const NeighborIndex& superset,
-                           const std::vector<Index>& rowOf) {
+                           const std::vector<Index>& rowOf, const NonZeroCheck& beforeAllocating) {
   checkAssemblyArguments(centres, sigma, lambda);
   if (rowOf.size() != superset.size()) {
     throw InvalidArgument("assembleWendland: the row map has " + std::to_string(rowOf.size()) +
                           " entries for an index of " + std::to_string(superset.size()) + " points");
   }
-  return assemble(centres, sigma, lambda, superset, rowOf);
+  return assemble(centres, sigma, lambda, superset, rowOf, beforeAllocating);
 }
 
 }  // namespace detail

@@ -2,6 +2,8 @@
 // the fit's merge search and its CSR pattern then share one k-d tree per level (docs/method.md §3.5, §5).
 #pragma once
 
+#include <cstddef>
+#include <functional>
 #include <vector>
 
 #include "duplexfit/neighbors.hpp"
@@ -15,7 +17,12 @@ namespace duplexfit::detail {
 /// coordinates must equal that row's), or −1 when point i is not a centre. The matrix is identical to
 /// the one assembled over an index of the centres alone.
 /// @throws InvalidArgument as assembleWendland, or when rowOf.size() ≠ superset.size().
+/// `beforeAllocating` (when set) is called with the sampled estimate of the non-zeros before the CSR
+/// arrays are reserved: the fit's memory check (ResourceLimits), which may throw.
+using NonZeroCheck = std::function<void(std::size_t estimatedNonZeros)>;
 CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda, const NeighborIndex& superset,
-                           const std::vector<Index>& rowOf);
+                           const std::vector<Index>& rowOf, const NonZeroCheck& beforeAllocating = {});
+/// assembleWendland(centres, sigma, lambda) over an index of the centres, with the check above.
+CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda, const NonZeroCheck& beforeAllocating);
 
 }  // namespace duplexfit::detail

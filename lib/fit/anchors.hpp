@@ -15,6 +15,7 @@
 namespace duplexfit {
 class NeighborIndex;
 class WindingNumber;
+struct LevelReport;
 }  // namespace duplexfit
 
 namespace duplexfit::detail {
@@ -58,5 +59,15 @@ struct Anchors {
 Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, const Points& inwardNormals,
                      const Eigen::VectorXd& areas, const NeighborIndex& inputIndex, const WindingNumber& winding, const Points& centres,
                      const AnchorOptions& options);
+
+struct LevelConstraints;
+
+/// Level k's sign anchors as fit() adds them (σ = σ_k, `spacing` the input's median spacing, normalised
+/// units), appended to c's centres and targets (sources −1), with the counts and the spacing (÷ scale: input
+/// units) in `report`. At most about as many anchors as the level has centres: the grid spacing doubles
+/// while there would be more.
+void addLevelAnchors(LevelConstraints& c, double sigma, double spacing, const std::vector<double>& deltas,
+                     const Eigen::AlignedBox3d& anchorBox, int k, const Points& cloud, const Points& inwardNormals,
+                     const WindingNumber& winding, const NeighborIndex& index, LevelReport& report, double scale);
 
 }  // namespace duplexfit::detail

@@ -23,6 +23,7 @@ struct Companions {
   std::size_t candidates = 0;
   Points medial;                       ///< rejected candidates moved onto the medial surface
   std::vector<double> medialTargets;   ///< their signed true distances
+  std::vector<Eigen::Index> medialSources;  ///< the point each medial point came from
 };
 
 // Candidates q = p_i + step·ν_i for points with a non-zero normal, kept when the nearest point p_j of P
@@ -123,6 +124,7 @@ Companions validCompanions(const Points& points, const Points& normals, const Ne
     }
     pos.push_back(mq.row(static_cast<Eigen::Index>(r)).transpose());
     out.medialTargets.push_back(sign * std::min(lo[r], dist[r]));
+    out.medialSources.push_back(src[r]);
   }
   out.medial.resize(static_cast<Eigen::Index>(pos.size()), 3);
   for (std::size_t r = 0; r < pos.size(); ++r) out.medial.row(static_cast<Eigen::Index>(r)) = pos[r].transpose();
@@ -173,15 +175,19 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   // has its own target.
   std::vector<Points> blocks;
   std::vector<Eigen::VectorXd> blockTargets;
+  std::vector<std::vector<Eigen::Index>> blockSources;  // the level point each row derives from
   Points surface(static_cast<Eigen::Index>(surfaceRows.size()), 3);
   for (std::size_t k = 0; k < surfaceRows.size(); ++k) surface.row(static_cast<Eigen::Index>(k)) = points.row(surfaceRows[k]);
   blockTargets.push_back(Eigen::VectorXd::Zero(surface.rows()));
   blocks.push_back(std::move(surface));
+  blockSources.push_back(surfaceRows);
   out.surface = surfaceRows.size();
 
   std::vector<Points> medialBlocks;
   std::vector<Eigen::VectorXd> medialTargets;
+  std::vector<std::vector<Eigen::Index>> medialSources;
   auto addMedial = [&](Companions& c) {
+    medialSources.push_back(std::move(c.medialSources));
     medialTargets.push_back(Eigen::Map<const Eigen::VectorXd>(c.medialTargets.data(),
                                                               static_cast<Eigen::Index>(c.medialTargets.size())));
     medialBlocks.push_back(std::move(c.medial));
@@ -191,6 +197,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
     Companions c = validCompanions(points, normals, index, delta, options.validityTolerance, options.tangentSideTest,
                                    options.medial, options.minMedialFraction);
     blockTargets.push_back(Eigen::VectorXd::Constant(c.positions.rows(), delta));
+    blockSources.push_back(c.sources);
     out.offsetCandidates.push_back(c.candidates);
     out.offsetKept.push_back(static_cast<std::size_t>(c.positions.rows()));
     blocks.push_back(std::move(c.positions));
@@ -204,6 +211,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
     Companions c = validCompanions(points, normals, index, side * d, options.validityTolerance, options.tangentSideTest,
                                    options.medial, options.minMedialFraction);
     blockTargets.push_back(Eigen::VectorXd::Constant(c.positions.rows(), side * d));
+    blockSources.push_back(c.sources);
     out.offSurfaceCandidates += c.candidates;
     out.offSurfaceKept += static_cast<std::size_t>(c.positions.rows());
     blocks.push_back(std::move(c.positions));
@@ -212,6 +220,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   for (std::size_t b = 0; b < medialBlocks.size(); ++b) {
     blocks.push_back(std::move(medialBlocks[b]));
     blockTargets.push_back(std::move(medialTargets[b]));
+    blockSources.push_back(std::move(medialSources[b]));
   }
 
   // Stack in priority order, then drop centres that lie within the merge
@@ -221,8 +230,10 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   Points all(total, 3);
   Eigen::VectorXd targets(total);
   std::vector<int> blockOf(static_cast<std::size_t>(total));
+  std::vector<Eigen::Index> sourceOf(static_cast<std::size_t>(total));
   Eigen::Index row = 0;
   for (std::size_t b = 0; b < blocks.size(); ++b) {
+    for (std::size_t i = 0; i < blockSources[b].size(); ++i) sourceOf[static_cast<std::size_t>(row) + i] = blockSources[b][i];
     all.middleRows(row, blocks[b].rows()) = blocks[b];
     targets.segment(row, blocks[b].rows()) = blockTargets[b];
     for (Eigen::Index i = 0; i < blocks[b].rows(); ++i) blockOf[static_cast<std::size_t>(row + i)] = static_cast<int>(b);
@@ -255,6 +266,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   out.merged = static_cast<std::size_t>(total - kept);
   out.centres.resize(kept, 3);
   out.targets.resize(kept);
+  out.sources.resize(static_cast<std::size_t>(kept));
   out.offsetRows.assign(options.offsets.size(), {});
   // Spatial (Morton) order: neighbours in space become neighbours in memory, which keeps SpMV reads of x
   // local and puts each point next to its close offset/off-surface companions (for block preconditioners).
@@ -274,6 +286,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
     if (out.candidateIndex) out.candidateRow[static_cast<std::size_t>(i)] = static_cast<Index>(r);
     out.centres.row(r) = all.row(i);
     out.targets[r] = targets[i];
+    out.sources[static_cast<std::size_t>(r)] = sourceOf[static_cast<std::size_t>(i)];
     const int b = blockOf[static_cast<std::size_t>(i)];
     if (b >= 1 && b <= static_cast<int>(options.offsets.size())) out.offsetRows[static_cast<std::size_t>(b - 1)].push_back(r);
     if (b == 0) out.surfaceCentres.emplace_back(surfaceRows[static_cast<std::size_t>(i)], r);

@@ -40,6 +40,10 @@ struct LevelConstraints {
   std::vector<std::size_t> offsetMedial;  ///< per offset: rejected candidates kept on the medial surface
   std::size_t offSurfaceMedial = 0;
   std::size_t merged = 0;
+  /// The row of the level's points each centre derives from (its own row for a surface point, the source
+  /// of an offset, off-surface or medial point): the distributed fit keeps the centres of the points a
+  /// rank owns.
+  std::vector<Eigen::Index> sources;
   /// Rows of `centres` that are valid offset points of offset j (for E_δ), per offset.
   std::vector<std::vector<Eigen::Index>> offsetRows;
   /// Pairs (input point index, centre row) of the surface points kept as centres, and the input

@@ -18,6 +18,7 @@
 #include "field/wendland_detail.hpp"
 #include "fit/anchors.hpp"
 #include "fit/constraints.hpp"
+#include "fit/fit_detail.hpp"
 #include "fit/hierarchy.hpp"
 #include "spatial/disk_distance.hpp"
 
@@ -27,14 +28,104 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-void report(const FitProgressCallback& progress, FitProgress event) {
-  if (progress && !progress(event)) throw Cancelled(std::string("fit cancelled during ") + fitStageName(event.stage));
+/// The fit's progress as a percentage of its work, for the callers' fractions and ETAs. A level's work is
+/// taken as proportional to its centres; the levels not reached yet are estimated from the last one known
+/// (4x a level, a surface's cells at half the size, capped at the input's size plus its offset points).
+/// Within a level: constraints 0–30%, right-hand sides 30–45%, assembly 45–55%, the solve 55–100% (by
+/// log(residual) / log(tolerance), the fraction of the residual's decades the CG has gained).
+class FitWork {
+ public:
+  FitWork(int levels, Eigen::Index points, std::size_t offsets)
+      : cap_(static_cast<double>(points) * static_cast<double>(2 + offsets)), known_(static_cast<std::size_t>(std::max(levels, 0)), -1.0) {}
+  /// Level k (1-based) has `centres` unknowns.
+  void setLevel(int k, Eigen::Index centres) {
+    if (k >= 1 && static_cast<std::size_t>(k) <= known_.size()) known_[static_cast<std::size_t>(k - 1)] = static_cast<double>(centres);
+  }
+  /// Percent done at `within` ∈ [0, 1] of level k (never less than before); -1 outside the levels.
+  int percent(int k, double within) const {
+    if (k < 1 || known_.empty()) return -1;
+    double last = 8.0, done = 0.0, total = 0.0;
+    for (std::size_t i = 0; i < known_.size(); ++i) {
+      const double w = known_[i] >= 0.0 ? known_[i] : std::min(cap_, 4.0 * last);
+      last = w;
+      total += w;
+      if (static_cast<int>(i) + 1 < k) done += w;
+      if (static_cast<int>(i) + 1 == k) done += std::clamp(within, 0.0, 1.0) * w;
+    }
+    if (!(total > 0.0)) return -1;
+    // Monotone: a level larger than its estimate moves the total, never the percent back.
+    shown_ = std::max(shown_, static_cast<int>(std::clamp(100.0 * done / total, 0.0, 100.0)));
+    return shown_;
+  }
+
+ private:
+  mutable int shown_ = 0;
+  double cap_;
+  std::vector<double> known_;
+};
+
+double stageStart(FitStage stage) {
+  switch (stage) {
+    case FitStage::Residual: return 0.30;
+    case FitStage::Assembly: return 0.45;
+    case FitStage::Solve: return 0.55;
+    default: return 0.0;
+  }
 }
+
+void report(Interrupter* interrupter, const FitEvent& event, const FitWork* work = nullptr) {
+  if (interrupter == nullptr) return;
+  interrupter->fitEvent(event);
+  int percent = -1;
+  if (work != nullptr) {
+    percent = event.stage == FitStage::Errors ? 100 : work->percent(event.level, stageStart(event.stage));
+  }
+  if (interrupter->wasInterrupted(percent)) {
+    throw Cancelled(std::string("fit cancelled during ") + fitStageName(event.stage));
+  }
+}
+
+/// Passes everything on to the fit's interrupter, with the level filled into the solver's events and the
+/// solve's progress (log residual / log tolerance) as the fit's percent.
+class LevelInterrupter final : public Interrupter {
+ public:
+  LevelInterrupter(Interrupter& to, int level, int levels, const FitWork& work, double tolerance)
+      : to_(to), level_(level), levels_(levels), work_(work), tolerance_(tolerance) {}
+  void start(const char* name) override { to_.start(name); }
+  void end() override { to_.end(); }
+  bool wasInterrupted(int percent) override {
+    if (percent < 0) {
+      double within = 0.0;
+      if (residual_ > 0.0 && residual_ < 1.0 && tolerance_ > 0.0 && tolerance_ < 1.0) {
+        within = std::log(residual_) / std::log(tolerance_);
+      }
+      percent = work_.percent(level_, stageStart(FitStage::Solve) + (1.0 - stageStart(FitStage::Solve)) * std::clamp(within, 0.0, 1.0));
+    }
+    return to_.wasInterrupted(percent);
+  }
+  void fitEvent(const FitEvent& event) override {
+    FitEvent e = event;
+    e.level = level_;
+    e.levels = levels_;
+    if (e.stage == FitStage::Solve && e.iteration > 0) residual_ = e.residual;
+    to_.fitEvent(e);
+  }
+  void message(const std::string& line) override { to_.message(line); }
+
+ private:
+  Interrupter& to_;
+  int level_, levels_;
+  const FitWork& work_;
+  double tolerance_;
+  double residual_ = 1.0;
+};
 
 constexpr const char* kStageNames[] = {"start",    "hierarchy",  "constraints", "assembly", "solve",
                                        "residual", "correction", "errors",      "other"};
 
-void checkOptions(const FitOptions& o) {
+}  // namespace
+
+void detail::checkFitOptions(const FitOptions& o) {
   auto bad = [](const std::string& what) { throw InvalidArgument("fit options: " + what); };
   if (!(o.validityTolerance >= 0.0 && o.validityTolerance < 1.0)) bad("validityTolerance must be in [0, 1)");
   if (o.levels < 0 || o.levels > 24) bad("levels must be between 0 (automatic) and 24");
@@ -43,19 +134,24 @@ void checkOptions(const FitOptions& o) {
   if (!(o.fitTolerance >= 0.0) || !std::isfinite(o.fitTolerance)) bad("fitTolerance must be >= 0");
   if (!(o.mergeDistance >= 0.0 && o.mergeDistance < 0.5)) bad("mergeDistance must be in [0, 0.5)");
   if (!(o.levelTolerance >= 0.0) || !std::isfinite(o.levelTolerance)) bad("levelTolerance must be >= 0");
+  if (!(o.coarseTolerance >= 0.0 && o.coarseTolerance < 1.0)) bad("coarseTolerance must be in [0, 1)");
   if (o.blockSize < 1 || o.blockSize > 256) bad("blockSize must be in [1, 256]");
+  // 0 iterations would leave every level's weights at 0: empty meshes that look like a finished fit.
+  if (o.solver.maxIterations < 1) bad("solver.maxIterations must be at least 1 (--max-iterations)");
   for (double d : o.offsets) {
     if (!std::isfinite(d)) bad("offsets must be finite");
   }
 }
 
 // The typical sample spacing: the square root of the median point area.
-double medianSpacing(const Eigen::VectorXd& areas) {
+double detail::medianSpacing(const Eigen::VectorXd& areas) {
   if (areas.size() == 0) return 0.0;
   std::vector<double> a(areas.data(), areas.data() + areas.size());
   std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(a.size() / 2), a.end());
   return std::sqrt(std::max(0.0, a[a.size() / 2]));
 }
+
+namespace {
 
 // A level's report plus its solved weights (moved into the field).
 struct LevelWork : LevelReport {
@@ -93,10 +189,24 @@ FitScales fitScales(const Points& positions, double alpha, int levels) {
   return s;
 }
 
+double estimateLevelBytes(std::size_t centres, std::size_t nonZeros, const FitOptions& options) {
+  const double s = options.precision == Precision::Double ? 8.0 : 4.0;
+  const double n = static_cast<double>(centres), z = static_cast<double>(nonZeros);
+  // CSR: host (int32 column, double value) and device (int32 column, s-byte value), row pointers on both.
+  const double csr = z * (12.0 + 4.0 + s) + 8.0 * (n + 1.0);
+  // Block Jacobi: the inverted blocks on the host (double) and the device.
+  const double blocks = options.preconditioner == PreconditionerKind::BlockJacobi
+                            ? n * static_cast<double>(std::max(1, options.blockSize)) * (8.0 + s)
+                            : n * s;
+  // CG: six device vectors; host: centres (24 B), targets, f_{k-1}, b, weights (8 B each).
+  const double vectors = n * (6.0 * s + 24.0 + 4.0 * 8.0);
+  return csr + blocks + vectors;
+}
+
 FitResult fit(const Device& device, const PointSet& points, const FitOptions& options,
-              const FitProgressCallback& progress) {
+              Interrupter* interrupter) {
   const auto start = Clock::now();
-  checkOptions(options);
+  detail::checkFitOptions(options);
   checkFittable(points, "input cloud");
   device.requirePrecision(options.precision);
 
@@ -130,7 +240,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
 
   // Hierarchy (§4).
   auto t = Clock::now();
-  report(progress, {FitStage::Hierarchy, 0, 0, 0, 0.0, "building the octree"});
+  report(interrupter, {FitStage::Hierarchy, 0, 0, 0, 0.0, "building the octree"});
   const detail::HierarchyBox box = detail::hierarchyBox(u);
   const double sigma1 = options.alpha * box.diagonal;
   const double sigma0 = detail::adaptiveSigma0(u, box);
@@ -139,6 +249,19 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   rep.sigma1 = sigma1 / norm.scale;
   rep.levels = levels;
   rep.secondsHierarchy = secondsSince(t);
+  FitWork work(levels, u.rows(), deltas.size());
+  {
+    // The finest level's centres are the input points with their offset and off-surface companions (fewer
+    // once invalid ones are dropped); each row has at least its diagonal. Plus the input's own arrays, the
+    // winding number's and the k-d tree's (about 200 bytes a point).
+    const std::size_t companions = deltas.size() + (offSide == 0 ? 0 : 1);
+    const std::size_t centres = static_cast<std::size_t>(u.rows()) * (1 + companions);
+    const double bytes = estimateLevelBytes(centres, centres, options) + 200.0 * static_cast<double>(u.rows());
+    requireMemory(options.limits, "fit",
+                  bytes, "the finest level (" + std::to_string(u.rows()) + " points with " + std::to_string(companions) +
+                             " companion(s) each: up to " + std::to_string(centres) + " centres)",
+                  "fit a sparser cloud (or fewer --sample-points of a mesh input) or fewer offsets");
+  }
 
   // Sign anchors: the winding number of the input cloud (outward normals) and an index for distances.
   std::unique_ptr<WindingNumber> winding;
@@ -147,11 +270,11 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   const int lastAnchorLevel = options.signAnchors ? levels - std::max(0, options.anchorSkipFinest) : 0;
   if (lastAnchorLevel >= 1) {
     t = Clock::now();
-    report(progress, {FitStage::Hierarchy, 0, 0, 0, 0.0, "winding number"});
+    report(interrupter, {FitStage::Hierarchy, 0, 0, 0, 0.0, "winding number"});
     const Points outwardNormals = -nu;
     winding = std::make_unique<WindingNumber>(u, outwardNormals);
     inputIndex = std::make_unique<NeighborIndex>(u);
-    spacing = medianSpacing(winding->areas());
+    spacing = detail::medianSpacing(winding->areas());
     rep.secondsWinding = secondsSince(t);
   }
   double maxOffset = 0.0;
@@ -167,31 +290,40 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   auto solveLevel = [&](const Points& centres, double sigma, double lambda, const Eigen::VectorXd& b, int k,
                         LevelWork& lr, const detail::LevelConstraints* superset) {
     auto t0 = Clock::now();
-    report(progress, {FitStage::Assembly, k, levels, 0, 0.0, std::to_string(centres.rows()) + " centres"});
+    report(interrupter, {FitStage::Assembly, k, levels, 0, 0.0, std::to_string(centres.rows()) + " centres"}, &work);
+    const detail::NonZeroCheck budget = [&](std::size_t nonZeros) {
+      std::ostringstream what;
+      what.precision(3);
+      what << "level " << k << " of " << levels << " (" << centres.rows() << " centres, about "
+           << static_cast<double>(nonZeros) << " non-zeros)";
+      requireMemory(options.limits, "fit", estimateLevelBytes(static_cast<std::size_t>(centres.rows()), nonZeros, options),
+                    what.str(), "fit a sparser cloud (or fewer --sample-points of a mesh input), or fewer offsets");
+    };
     CsrMatrix a = superset != nullptr ? detail::assembleWendland(centres, sigma, lambda, *superset->candidateIndex,
-                                                                 superset->candidateRow)
-                                      : assembleWendland(centres, sigma, lambda);
+                                                                 superset->candidateRow, budget)
+                                      : detail::assembleWendland(centres, sigma, lambda, budget);
     lr.nonZeros = a.nonZeros();
     lr.secondsAssembly = secondsSince(t0);
 
     t0 = Clock::now();
-    report(progress, {FitStage::Solve, k, levels, 0, 0.0, std::to_string(lr.nonZeros) + " non-zeros"});
+    report(interrupter, {FitStage::Solve, k, levels, 0, 0.0, std::to_string(lr.nonZeros) + " non-zeros"}, &work);
     const DeviceCsr m = DeviceCsr::upload(device, a, options.precision);
     const DeviceVector db = DeviceVector::upload(device, b, options.precision);
     DeviceVector x(device, static_cast<std::size_t>(b.size()), options.precision);
     SolverOptions so = options.solver;
     if (so.absoluteTolerance == 0.0) so.absoluteTolerance = options.levelTolerance;
-    so.progress = [&](int it, double res) {
-      if (options.solver.progress && !options.solver.progress(it, res)) return false;
-      return !progress || progress({FitStage::Solve, k, levels, it, res, ""});
-    };
+    if (k < levels && options.coarseTolerance > 0.0) so.relativeTolerance = options.coarseTolerance;
     std::unique_ptr<Preconditioner> pre;
     if (options.preconditioner == PreconditionerKind::BlockJacobi) {
       pre = std::make_unique<BlockJacobiPreconditioner>(device, a, options.precision, options.blockSize);
     } else {
       pre = std::make_unique<JacobiPreconditioner>(m);
     }
-    lr.solve = solveCg(m, db, x, so, pre.get());
+    std::unique_ptr<LevelInterrupter> levelInterrupter;
+    if (interrupter != nullptr) {
+      levelInterrupter = std::make_unique<LevelInterrupter>(*interrupter, k, levels, work, so.relativeTolerance);
+    }
+    lr.solve = solveCg(m, db, x, so, pre.get(), levelInterrupter.get());
     if (lr.solve.reason == StopReason::Cancelled) throw Cancelled("fit cancelled during the level " + std::to_string(k) + " solve");
     lr.secondsSolve = secondsSince(t0);
     lr.weights = x.download();
@@ -213,7 +345,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     lr.sigma = sigma / norm.scale;
 
     t = Clock::now();
-    report(progress, {FitStage::Constraints, k, levels, 0, 0.0, ""});
+    report(interrupter, {FitStage::Constraints, k, levels, 0, 0.0, ""}, &work);
     detail::LevelPoints level = k < levels ? detail::cellCentroids(u, nu, box, k) : detail::LevelPoints{u, nu};
     detail::ConstraintOptions co;
     co.offsets = deltas;
@@ -235,38 +367,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     lr.offsetMedial = c.offsetMedial;
     lr.offSurfaceMedial = c.offSurfaceMedial;
     if (k <= lastAnchorLevel) {
-      detail::AnchorOptions ao;
-      ao.spacing = sigma / 2.0;
-      // Lower bound 3σ_k/4: at σ_k/2, anchors next to the offset band left bumps of 4.5% of δ on
-      // notched_cube_24k's inner offset (0.9% at 3σ_k/4); at σ_k the hole of thin_torus_20k refills.
-      ao.minDistance = std::max(0.75 * sigma, 3.0 * spacing);
-      ao.maxDistance = k == 1 ? 0.0 : 2.0 * sigma;
-      ao.centreClearance = sigma / 4.0;
-      ao.offsets = deltas;
-      ao.offsetClearance = sigma / 2.0;
-      // At most about a quarter as many anchors as the level has centres: where the σ_k/2 grid would give
-      // more (fine levels of dense clouds: fandisk_550k's level 8 had 646k anchors beside 588k centres,
-      // 1.7x the fit's CPU time), the spacing doubles.
-      const auto cap = std::max<std::size_t>(256, static_cast<std::size_t>(c.centres.rows()));
-      ao.maxCandidates = 4 * cap;
-      detail::Anchors an;
-      double usedSpacing = ao.spacing;
-      for (int attempt = 0; attempt < 4; ++attempt) {
-        usedSpacing = ao.spacing;
-        an = detail::levelAnchors(anchorBox, u, nu, winding->areas(), *inputIndex, *winding, c.centres, ao);
-        if (!an.tooMany && static_cast<std::size_t>(an.positions.rows()) <= cap) break;
-        ao.spacing *= 2.0;
-        if (attempt == 2) ao.maxCandidates = std::numeric_limits<std::size_t>::max();
-      }
-      lr.anchorSpacing = usedSpacing / norm.scale;
-      lr.anchorsInside = an.inside;
-      lr.anchorsOutside = an.outside;
-      lr.anchorsSkipped = an.ambiguous + an.disagreeing + an.crowded + an.nearOffset;
-      const Eigen::Index base = c.centres.rows(), extra = an.positions.rows();
-      c.centres.conservativeResize(base + extra, 3);
-      c.centres.bottomRows(extra) = an.positions;
-      c.targets.conservativeResize(base + extra);
-      c.targets.tail(extra) = an.targets;
+      detail::addLevelAnchors(c, sigma, spacing, deltas, anchorBox, k, u, nu, *winding, *inputIndex, lr, norm.scale);
     }
     lr.surfacePoints = c.surface;
     lr.offsetCandidates = c.offsetCandidates;
@@ -279,7 +380,8 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
 
     // Right-hand side b = t − f_{k−1}(C) (§5), f_0 = −1.
     t = Clock::now();
-    report(progress, {FitStage::Residual, k, levels, 0, 0.0, ""});
+    work.setLevel(k, c.centres.rows());
+    report(interrupter, {FitStage::Residual, k, levels, 0, 0.0, ""}, &work);
     Eigen::VectorXd fPrev = Eigen::VectorXd::Constant(c.centres.rows(), -1.0);
     if (!fitted.empty()) fPrev = evaluator->evaluateNormalized(c.centres);
     const Eigen::VectorXd b = c.targets - fPrev;
@@ -324,13 +426,13 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   // the difference between the true distance to the samples and δ on each fitted δ level.
   if (options.offsetCorrection && !deltas.empty() && !fitted.empty() && !rep.stoppedEarly) {
     t = Clock::now();
-    report(progress, {FitStage::Correction, 0, levels, 0, 0.0, "offset levels against the distance to the samples"});
+    report(interrupter, {FitStage::Correction, 0, levels, 0, 0.0, "offset levels against the distance to the samples"});
     OffsetCorrectionReport& cr = rep.correction;
     double minDelta = std::numeric_limits<double>::infinity();
     for (const double d : deltas) minDelta = std::min(minDelta, std::abs(d));
     const Points outwardNormals = -nu;
     const Eigen::VectorXd areas = winding ? winding->areas() : estimatePointAreas(u, outwardNormals);
-    if (spacing <= 0.0) spacing = medianSpacing(areas);
+    if (spacing <= 0.0) spacing = detail::medianSpacing(areas);
     if (!inputIndex) inputIndex = std::make_unique<NeighborIndex>(u);
     const double sigmaC = std::min(fitted.back().sigma, 0.5 * minDelta);
     cr.sigma = sigmaC / norm.scale;
@@ -440,7 +542,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
 
   // E_0 (§8.1): max |f| at every input point. Those that are level-M centres have it from the final
   // residual; the others (merged away, dropped, or all of them after an early stop) are evaluated.
-  report(progress, {FitStage::Errors, 0, levels, 0, 0.0, ""});
+  report(interrupter, {FitStage::Errors, 0, levels, 0, 0.0, ""}, &work);
   Points rest;
   if (finestIsInput) {
     rest.resize(static_cast<Eigen::Index>(notCentres.size()), 3);

@@ -35,7 +35,7 @@ PointSet offsetPointCloud(const PointSet& points, double delta, bool normalsInwa
 }
 
 SeparateFitResult fitSeparate(const Device& device, const PointSet& points, const FitOptions& options,
-                              const FitProgressCallback& progress) {
+                              Interrupter* interrupter) {
   const auto start = std::chrono::steady_clock::now();
   if (points.size() == 0) throw InvalidArgument("fit: the cloud is empty");
   const double side = points.bounds().sizes().maxCoeff();
@@ -44,19 +44,21 @@ SeparateFitResult fitSeparate(const Device& device, const PointSet& points, cons
   single.offsets.clear();
   single.offsetsRelative = false;
   auto announce = [&](const std::string& what) {
-    if (progress && !progress({FitStage::Start, 0, 0, 0, 0.0, what})) throw Cancelled("fit cancelled");
+    if (interrupter == nullptr) return;
+    interrupter->fitEvent({FitStage::Start, 0, 0, 0, 0.0, what});
+    if (interrupter->wasInterrupted()) throw Cancelled("fit cancelled before the " + what + " fit");
   };
   // Checked before any work.
   const std::vector<double> deltas = detail::worldOffsets(options.offsets, options.offsetsRelative, side);
   announce("surface");
-  FitResult zero = fit(device, points, single, progress);
+  FitResult zero = fit(device, points, single, interrupter);
   out.zero = std::move(zero.field);
   out.zeroReport = std::move(zero.report);
   for (const double world : deltas) {
     const PointSet cloud =
         offsetPointCloud(points, world, options.normalsInward, options.validityTolerance, options.sideTest);
     announce("offset " + std::to_string(out.offsets.size() + 1));
-    FitResult r = fit(device, cloud, single, progress);
+    FitResult r = fit(device, cloud, single, interrupter);
     out.offsets.push_back(std::move(r.field));
     out.offsetReports.push_back(std::move(r.report));
     out.offsetDeltas.push_back(world);

@@ -79,6 +79,16 @@ double adaptiveSigma0(const Points& points, const HierarchyBox& box, int maxPerL
   return s.leaves == 0 ? 0.75 * box.diagonal : 0.75 * s.diagonalSum / static_cast<double>(s.leaves);
 }
 
+void adaptiveOctreeSums(const Points& points, const HierarchyBox& box, double& diagonalSum, std::size_t& leaves,
+                        int maxPerLeaf) {
+  std::vector<std::int32_t> idx(static_cast<std::size_t>(points.rows()));
+  std::iota(idx.begin(), idx.end(), 0);
+  OctreeStats s;
+  splitCell(points, idx, 0, idx.size(), box.min, box.max, 0, maxPerLeaf, s);
+  diagonalSum = s.diagonalSum;
+  leaves = s.leaves;
+}
+
 int levelCount(double sigma1, double sigma0) {
   return std::max(1, static_cast<int>(std::ceil(std::log2(2.0 * sigma1 / sigma0) - 1e-12)));
 }

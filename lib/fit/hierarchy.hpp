@@ -21,6 +21,11 @@ HierarchyBox hierarchyBox(const Points& points);
 /// cells holding more than `maxPerLeaf` points, depth capped at 21 (§4.5).
 double adaptiveSigma0(const Points& points, const HierarchyBox& box, int maxPerLeaf = 8);
 
+/// The two sums behind adaptiveSigma0: the non-empty leaves' diagonals and their number (the distributed
+/// fit reduces them over the ranks' blocks).
+void adaptiveOctreeSums(const Points& points, const HierarchyBox& box, double& diagonalSum, std::size_t& leaves,
+                        int maxPerLeaf = 8);
+
 /// M = max(1, ⌈log₂(2σ_1/σ_0)⌉) (§4.6).
 int levelCount(double sigma1, double sigma0);
 

@@ -3,13 +3,16 @@
 #include "duplexfit/atomic_file.hpp"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <string>
 #include <system_error>
+#include <vector>
 
 #include "duplexfit/error.hpp"
 
@@ -124,22 +127,59 @@ void AtomicFile::commit() {
   }
 }
 
+namespace {
+
+/// Removes `.duplexfit-tmp-PID` folders in `folder` whose process has gone (kill(PID, 0) fails with ESRCH):
+/// what a run killed by SIGKILL, or before its handlers ran, left behind. A folder of a live process is
+/// kept, whatever that process is.
+void removeStaleStaging(const std::filesystem::path& folder) {
+  namespace fs = std::filesystem;
+  const std::string prefix = ".duplexfit-tmp-";
+  std::error_code ec;
+  std::vector<fs::path> stale;
+  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
+    const std::string digits = name.substr(prefix.size());
+    if (digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos) continue;
+    const long pid = std::stol(digits);
+    if (pid <= 0 || pid == static_cast<long>(getpid())) continue;
+    if (::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) stale.push_back(it->path());
+  }
+  for (const fs::path& p : stale) fs::remove_all(p, ec);
+}
+
+}  // namespace
+
 StagedFolder::StagedFolder(const std::filesystem::path& outDir) : outDir_(outDir) {
   namespace fs = std::filesystem;
   std::error_code ec;
+  for (fs::path p = outDir_; !p.empty() && !fs::exists(p, ec); p = p.parent_path()) {
+    created_.push_back(p);
+    if (p == p.parent_path()) break;
+  }
   fs::create_directories(outDir_, ec);
   if (ec || !fs::is_directory(outDir_)) {
     throw IoError(outDir_.string() + ": cannot create the output folder (" + ec.message() + ")");
   }
+  removeStaleStaging(outDir_);
   dir_ = outDir_ / (".duplexfit-tmp-" + std::to_string(getpid()));
   fs::remove_all(dir_, ec);
   fs::create_directory(dir_, ec);
-  if (ec) throw IoError(outDir_.string() + ": the output folder is not writable (" + ec.message() + ")");
+  if (ec) {
+    const std::string message = ec.message();
+    for (const fs::path& p : created_) fs::remove(p, ec);
+    throw IoError(outDir_.string() + ": the output folder is not writable (" + message + ")");
+  }
 }
 
 StagedFolder::~StagedFolder() {
   std::error_code ec;
   std::filesystem::remove_all(dir_, ec);
+  // Only when empty: remove() of a non-empty folder fails and leaves it.
+  if (!committed_) {
+    for (const std::filesystem::path& p : created_) std::filesystem::remove(p, ec);
+  }
 }
 
 std::string StagedFolder::path(const std::string& name, bool folder) {
@@ -147,15 +187,21 @@ std::string StagedFolder::path(const std::string& name, bool folder) {
   if (folder) {
     std::error_code ec;
     std::filesystem::create_directory(dir_ / name, ec);
-    if (ec) throw IoError((dir_ / name).string() + ": cannot create (" + ec.message() + ")");
+    if (ec) throw IoError((outDir_ / name).string() + ": cannot create (" + ec.message() + ")");
   }
   return (dir_ / name).string();
 }
 
 void StagedFolder::commit() {
   namespace fs = std::filesystem;
+  if (names_.empty()) return;
+  std::error_code ec;
+  // The index goes first, so no reader sees the old index beside a mix of old and new entries.
+  const std::string& index = names_.back();
+  if (!fs::is_directory(outDir_ / index)) fs::remove(outDir_ / index, ec);
+  committed_ = true;  // from here on the output folder holds (part of) this run
   for (const std::string& n : names_) {
-    std::error_code ec;
+    ec.clear();
     if (fs::is_directory(dir_ / n)) fs::remove_all(outDir_ / n, ec);
     fs::rename(dir_ / n, outDir_ / n, ec);
     if (ec) throw IoError((outDir_ / n).string() + ": cannot move the output into place (" + ec.message() + ")");

@@ -99,6 +99,17 @@ std::size_t ByteReader::read(void* dst, std::size_t n) {
 
 std::uint64_t ByteReader::skip(std::uint64_t n) {
   std::uint64_t done = 0;
+  // Beyond the buffer, seek (a rank reading its own row range of a large file does not read the rest).
+  const std::uint64_t buffered = end_ - pos_;
+  if (n > buffered + buffer_.size()) {
+    const std::uint64_t target = std::min<std::uint64_t>(offset() + n, size_);
+    if (fseeko(file_, static_cast<off_t>(target), SEEK_SET) == 0) {
+      done = target - offset();
+      consumed_ = target;
+      pos_ = end_ = 0;
+      return done;
+    }
+  }
   while (done < n && refill()) {
     const std::uint64_t take = std::min<std::uint64_t>(n - done, end_ - pos_);
     pos_ += static_cast<std::size_t>(take);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <sstream>
 #include <cstring>
 #include <limits>
 #include <string>
@@ -15,6 +16,7 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/io.hpp"
 #include "ply.hpp"
+#include "io/mesh_3mf.hpp"
 
 namespace duplexfit {
 
@@ -22,12 +24,11 @@ namespace {
 
 MeshFormat resolveFormat(const std::string& path, MeshFormat format, const char* caller) {
   if (format != MeshFormat::Auto) return format;
+  const MeshFormat byName = meshFormatOf(path);
+  if (byName != MeshFormat::Auto) return byName;
   const std::string ext = io::lowerExtension(path);
-  if (ext.empty() || ext == ".ply") return MeshFormat::Ply;
-  if (ext == ".obj") return MeshFormat::Obj;
-  if (ext == ".stl") return MeshFormat::Stl;
   throw InvalidArgument(std::string(caller) + ": unknown mesh extension '" + ext + "' of " + path +
-                        " (expected .ply, .obj or .stl)");
+                        " (expected .ply, .obj, .stl or .3mf)");
 }
 
 /// Rejects what the formats cannot store: bad indices, non-finite or (for float formats) huge
@@ -72,16 +73,50 @@ void drain(AtomicFile& file, std::vector<unsigned char>& block, bool force = fal
   }
 }
 
+/// The float32 spacing at the mesh's largest coordinate against its extent (a part 1 unit wide centred at
+/// 1e8 has steps of 8). PLY switches to double below 10⁵ steps across the part (lossless, cheap); STL,
+/// float32 only, is refused below 10³ steps, where the part itself is lost.
+struct FloatResolution {
+  double magnitude = 0.0, extent = 0.0, step = 0.0;
+  bool enough() const { return !(step > 1e-5 * extent); }
+  bool usable() const { return !(step > 1e-3 * extent); }
+};
+
+FloatResolution floatResolution(const Mesh& mesh) {
+  FloatResolution r;
+  if (mesh.vertices.rows() == 0) return r;
+  const Eigen::RowVector3d lo = mesh.vertices.colwise().minCoeff(), hi = mesh.vertices.colwise().maxCoeff();
+  r.magnitude = std::max(lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff());
+  r.extent = (hi - lo).maxCoeff();
+  r.step = r.magnitude * std::ldexp(1.0, -23);
+  return r;
+}
+
+std::string describeResolution(const FloatResolution& r) {
+  std::ostringstream s;
+  s << "coordinates up to " << r.magnitude << " across an extent of " << r.extent << ": float32 steps of "
+    << r.step;
+  return s.str();
+}
+
 void writePly(const std::string& path, const Mesh& mesh) {
+  // Double coordinates where float32 would merge the model's vertices (every PLY reader knows double).
+  const bool wide = !floatResolution(mesh).enough();
+  const char* type = wide ? "double" : "float";
   AtomicFile file(path);
-  file.write("ply\nformat binary_little_endian 1.0\ncomment written by duplexfit\nelement vertex " +
-             std::to_string(mesh.vertices.rows()) +
-             "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
-             std::to_string(mesh.faces.rows()) +
+  file.write(std::string("ply\nformat binary_little_endian 1.0\ncomment written by duplexfit\nelement vertex ") +
+             std::to_string(mesh.vertices.rows()) + "\nproperty " + type + " x\nproperty " + type +
+             " y\nproperty " + type + " z\nelement face " + std::to_string(mesh.faces.rows()) +
              "\nproperty list uchar int vertex_indices\nend_header\n");
   std::vector<unsigned char> block;
   for (Eigen::Index v = 0; v < mesh.vertices.rows(); ++v) {
-    for (int k = 0; k < 3; ++k) putLittle(block, static_cast<float>(mesh.vertices(v, k)));
+    for (int k = 0; k < 3; ++k) {
+      if (wide) {
+        putLittle(block, mesh.vertices(v, k));
+      } else {
+        putLittle(block, static_cast<float>(mesh.vertices(v, k)));
+      }
+    }
     drain(file, block);
   }
   for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
@@ -134,6 +169,11 @@ void writeObj(const std::string& path, const Mesh& mesh) {
 void writeStl(const std::string& path, const Mesh& mesh) {
   if (mesh.faces.rows() > std::numeric_limits<std::uint32_t>::max()) {
     throw InvalidArgument("writeMesh: too many faces for STL (" + path + ")");
+  }
+  const FloatResolution resolution = floatResolution(mesh);
+  if (!resolution.usable()) {
+    throw InvalidArgument("writeMesh: " + path + ": STL stores float32 only and the mesh has " +
+                          describeResolution(resolution) + "; write PLY or OBJ (double), or move the part near the origin");
   }
   AtomicFile file(path);
   // The 80-byte header must not start with "solid", or readers take the file for ascii STL.
@@ -478,6 +518,54 @@ Mesh readStlMesh(const std::string& path) {
 
 }  // namespace
 
+bool mesh3mfAvailable() noexcept { return io::threeMfAvailable(); }
+
+const char* meshFormatName(MeshFormat format) noexcept {
+  switch (format) {
+    case MeshFormat::Auto:
+      return "auto";
+    case MeshFormat::Ply:
+      return "ply";
+    case MeshFormat::Obj:
+      return "obj";
+    case MeshFormat::Stl:
+      return "stl";
+    case MeshFormat::ThreeMf:
+      return "3mf";
+  }
+  return "?";
+}
+
+MeshFormat meshFormatOf(const std::string& path) {
+  const std::string ext = io::lowerExtension(path);
+  if (ext.empty() || ext == ".ply") return MeshFormat::Ply;
+  if (ext == ".obj") return MeshFormat::Obj;
+  if (ext == ".stl") return MeshFormat::Stl;
+  if (ext == ".3mf") return MeshFormat::ThreeMf;
+  return MeshFormat::Auto;
+}
+
+const char* inputKindName(InputKind kind) noexcept {
+  switch (kind) {
+    case InputKind::Auto:
+      return "auto";
+    case InputKind::Cloud:
+      return "cloud";
+    case InputKind::Mesh:
+      return "mesh";
+  }
+  return "?";
+}
+
+InputKind detectInputKind(const std::string& path) {
+  const std::string ext = io::lowerExtension(path);
+  if (ext == ".stl" || ext == ".obj" || ext == ".3mf") return InputKind::Mesh;
+  if (ext != ".ply") return InputKind::Cloud;
+  const io::PlyReader ply(path);  // the header only
+  const int face = ply.findElement("face");
+  return face >= 0 && ply.elements()[static_cast<std::size_t>(face)].count > 0 ? InputKind::Mesh : InputKind::Cloud;
+}
+
 void writeMesh(const std::string& path, const Mesh& mesh, MeshFormat format) {
   const MeshFormat resolved = resolveFormat(path, format, "writeMesh");
   validateForWriting(path, mesh, resolved != MeshFormat::Obj);
@@ -487,6 +575,9 @@ void writeMesh(const std::string& path, const Mesh& mesh, MeshFormat format) {
       return;
     case MeshFormat::Stl:
       writeStl(path, mesh);
+      return;
+    case MeshFormat::ThreeMf:
+      io::write3mf(path, mesh);
       return;
     case MeshFormat::Ply:
     case MeshFormat::Auto:
@@ -501,6 +592,8 @@ Mesh readMesh(const std::string& path, MeshFormat format) {
       return readObjMesh(path);
     case MeshFormat::Stl:
       return readStlMesh(path);
+    case MeshFormat::ThreeMf:
+      return io::read3mf(path);
     case MeshFormat::Ply:
     case MeshFormat::Auto:
       break;

@@ -56,6 +56,9 @@ class PlyReader {
   /// and the items of property `listProperty` (when ≥ 0) into `list`.
   /// @throws IoError on a truncated body, junk text or a wrong number of values.
   void readRow(std::vector<double>& values, int listProperty, std::vector<double>& list);
+  /// Skips `rows` rows of the current element (after beginElement); binary rows of a fixed size are
+  /// skipped by seeking. @throws IoError when the body is truncated.
+  void skipElementRows(std::int64_t rows) { skipRows(elements_[current_], rows); }
 
   /// "vertex 12 at line 27" (ascii) or "vertex 12 at byte offset 1234" (binary) for the last row.
   std::string where() const;

@@ -49,7 +49,9 @@ std::string joinNames(const std::vector<std::string>& names) {
   return out.empty() ? "(none)" : out;
 }
 
-PointCloudFile readPly(const std::string& path, const PointReadOptions& options) {
+// Rows [first, first + count) of the vertex element (count < 0: to the end).
+PointCloudFile readPly(const std::string& path, const PointReadOptions& options, std::int64_t first = 0,
+                       std::int64_t count = -1) {
   io::PlyReader ply(path);
   PointCloudFile result;
   PointReadReport& report = result.report;
@@ -102,13 +104,19 @@ PointCloudFile readPly(const std::string& path, const PointReadOptions& options)
     ply.fail(what + kNormalsHelp);
   }
 
+  if (first < 0 || first > vertex.count || (count >= 0 && count > vertex.count - first)) {
+    ply.fail("vertex rows " + std::to_string(first) + " .. " + std::to_string(first + std::max<std::int64_t>(count, 0)) +
+             " requested, but the vertex element has " + std::to_string(vertex.count) + " rows");
+  }
+  const std::int64_t rows = count < 0 ? vertex.count - first : count;
   ply.beginElement(static_cast<std::size_t>(vertexIndex));
+  ply.skipElementRows(first);
   // Reserve no more than the bytes left could hold (every value takes at least one byte).
   PointBuffer buffer;
   const std::uint64_t minRow = std::max<std::uint64_t>(1, vertex.properties.size());
-  buffer.reserve(std::min(static_cast<std::uint64_t>(vertex.count), ply.remainingBytes() / minRow));
+  buffer.reserve(std::min(static_cast<std::uint64_t>(rows), ply.remainingBytes() / minRow));
   std::vector<double> values, unusedList;
-  for (std::int64_t i = 0; i < vertex.count; ++i) {
+  for (std::int64_t i = 0; i < rows; ++i) {
     ply.readRow(values, -1, unusedList);
     double row[6] = {0, 0, 0, 0, 0, 0};
     for (int k = 0; k < (report.normals ? 6 : 3); ++k) {
@@ -209,6 +217,19 @@ const char* pointFormatName(PointFormat format) noexcept {
       break;
   }
   return "auto";
+}
+
+std::int64_t plyVertexCount(const std::string& path) {
+  io::PlyReader ply(path);
+  const int vertexIndex = ply.findElement("vertex");
+  if (vertexIndex < 0) ply.fail("the PLY header declares no 'vertex' element");
+  return ply.elements()[static_cast<std::size_t>(vertexIndex)].count;
+}
+
+PointCloudFile readPlyVertexRows(const std::string& path, std::int64_t first, std::int64_t count,
+                                 const PointReadOptions& options) {
+  if (count < 0) throw InvalidArgument(path + ": a negative row count (" + std::to_string(count) + ")");
+  return readPly(path, options, first, count);
 }
 
 const char* plyEncodingName(PlyEncoding encoding) noexcept {

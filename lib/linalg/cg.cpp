@@ -53,7 +53,7 @@ bool finite(double v) { return std::isfinite(v); }
 }  // namespace
 
 SolveStats solveCg(const DeviceCsr& a, const DeviceVector& b, DeviceVector& x, const SolverOptions& options,
-                   const Preconditioner* preconditioner) {
+                   const Preconditioner* preconditioner, Interrupter* interrupter) {
   const auto start = std::chrono::steady_clock::now();
   const std::size_t n = a.rows();
   if (a.rows() != a.cols()) throw InvalidArgument("solveCg: the matrix is not square");
@@ -69,6 +69,7 @@ SolveStats solveCg(const DeviceCsr& a, const DeviceVector& b, DeviceVector& x, c
   stats.tolerance = options.relativeTolerance > 0.0 ? options.relativeTolerance
                     : a.precision() == Precision::Double ? 1e-6
                                                          : 1e-5;
+  stats.absoluteTolerance = options.absoluteTolerance;
   auto finish = [&](StopReason reason) {
     stats.reason = reason;
     stats.converged = reason == StopReason::Converged || reason == StopReason::ZeroRhs;
@@ -145,7 +146,7 @@ SolveStats solveCg(const DeviceCsr& a, const DeviceVector& b, DeviceVector& x, c
       haveTrue = true;
       trueNormLast = trueNorm;
       trueMaxLast = trueMax;
-      if (trueNorm <= 10.0 * target || (absTol > 0.0 && trueMax <= 10.0 * absTol)) {
+      if (trueNorm <= target || (absTol > 0.0 && trueMax <= absTol)) {
         reason = StopReason::Converged;
         break;
       }
@@ -187,10 +188,16 @@ SolveStats solveCg(const DeviceCsr& a, const DeviceVector& b, DeviceVector& x, c
       xpay(z, beta, p);
     }
     ++it;
-    if (options.progress && options.progressInterval > 0 && it % options.progressInterval == 0 &&
-        !options.progress(it, std::sqrt(std::max(sums.rr, 0.0)) / bnorm)) {
-      reason = StopReason::Cancelled;
-      break;
+    if (interrupter != nullptr && options.progressInterval > 0 && it % options.progressInterval == 0) {
+      FitEvent event;
+      event.stage = FitStage::Solve;
+      event.iteration = it;
+      event.residual = std::sqrt(std::max(sums.rr, 0.0)) / bnorm;
+      interrupter->fitEvent(event);
+      if (interrupter->wasInterrupted()) {
+        reason = StopReason::Cancelled;
+        break;
+      }
     }
   }
   stats.iterations = it;

@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include <sstream>
+
 #include "duplexfit/error.hpp"
 #include "duplexfit/measure.hpp"
 #include "measure/geometry.hpp"
@@ -301,6 +303,16 @@ bool pairIntersect(const Tri& s, const Tri& t, double tol) {
 MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
   MeshCheck r;
   r.validation = validateMesh(mesh, "mesh");
+  {
+    // The topology's edge table (three 24-byte edges a face), the tree (about 120 bytes a face), the quality
+    // and per-face tables; the pair search keeps only counts (bounded by candidatePairBudget).
+    const double faces = static_cast<double>(mesh.faces.rows());
+    std::ostringstream what;
+    what.precision(3);
+    what << "the mesh's " << faces << " faces";
+    requireMemory(options.limits, "check", 250.0 * faces + 24.0 * static_cast<double>(mesh.vertices.rows()), what.str(),
+                  "check a simplified mesh (mesh --max-triangles)");
+  }
   r.topology = analyzeTopology(mesh);
   r.watertight = r.topology.watertight();
   r.manifold = r.topology.manifold();
@@ -309,6 +321,12 @@ MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
   r.area = surfaceArea(mesh);
   r.outward = r.signedVolume > 0.0;
   r.boundaryLoops = countBoundaryLoops(mesh);
+  if (!(options.maxSliverShare >= 0.0) || !(options.maxSliverShare <= 1.0)) {
+    throw InvalidArgument("check: the sliver share must be in [0, 1]");
+  }
+  r.quality = triangleQuality(mesh, options.sliverAngle);
+  r.tooManySlivers =
+      static_cast<double>(r.quality.slivers) > options.maxSliverShare * static_cast<double>(r.quality.faces);
   if (r.manifold && r.oriented && !r.empty()) {
     const long long twice = 2 * static_cast<long long>(r.topology.components) - r.topology.eulerCharacteristic -
                             static_cast<long long>(r.boundaryLoops);

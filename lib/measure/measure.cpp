@@ -103,10 +103,27 @@ SampleStats scaled(SampleStats s, double factor) {
   return s;
 }
 
-/// One-sided distances from samples to a tree.
-SampleStats oneSided(const MeshSamples& samples, const TriangleBvh& tree) {
-  Eigen::VectorXd d = tree.distances(samples.points);
-  std::vector<double> values(d.data(), d.data() + d.size());
+/// Samples measured between two polls of the interrupter.
+constexpr Eigen::Index kPollChunk = Eigen::Index{1} << 16;
+
+/// Polls `interrupter` (may be null) with `percent`; throws Cancelled naming `what` when it says stop.
+void poll(Interrupter* interrupter, double percent, const char* what) {
+  if (interrupter != nullptr && interrupter->wasInterrupted(static_cast<int>(std::clamp(percent, 0.0, 100.0)))) {
+    throw Cancelled(std::string(what) + " cancelled");
+  }
+}
+
+/// One-sided distances from samples to a tree; the polls span percents [p0, p1].
+SampleStats oneSided(const MeshSamples& samples, const TriangleBvh& tree, Interrupter* interrupter, double p0,
+                     double p1) {
+  const Eigen::Index n = samples.points.rows();
+  std::vector<double> values(static_cast<std::size_t>(n));
+  for (Eigen::Index begin = 0; begin < n; begin += kPollChunk) {
+    const Eigen::Index count = std::min(kPollChunk, n - begin);
+    const Eigen::VectorXd d = tree.distances(samples.points.middleRows(begin, count));
+    std::copy(d.data(), d.data() + count, values.begin() + static_cast<std::ptrdiff_t>(begin));
+    poll(interrupter, p0 + (p1 - p0) * static_cast<double>(begin + count) / static_cast<double>(n), "measure");
+  }
   std::size_t argmax = 0;
   SampleStats s = summarize(values, &argmax);
   if (s.samples > 0) {
@@ -318,24 +335,44 @@ MeshSamples sampleMesh(const Mesh& mesh, const MeasureOptions& options) {
   return s;
 }
 
-DistanceReport measureDistance(const Mesh& a, const Mesh& b, const MeasureOptions& options) {
+namespace {
+
+/// Samples of `sampled` (position, face, distance, closest point: about 64 bytes each) and the tree of
+/// `tree` (about 120 bytes a face): checked against the budget before either is built.
+void checkMeasureMemory(const Mesh& sampled, const Mesh& tree, const MeasureOptions& options, const char* what) {
+  const double faces = static_cast<double>(sampled.faces.rows());
+  const double samples = options.samplesPerFace * faces + (options.includeVertices ? static_cast<double>(sampled.vertices.rows()) : 0.0);
+  const double bytes = 64.0 * samples + 120.0 * static_cast<double>(tree.faces.rows());
+  std::ostringstream s;
+  s.precision(3);
+  s << "about " << samples << " samples of the " << what << " (" << faces << " faces, --samples " << options.samplesPerFace
+    << ")";
+  requireMemory(options.limits, "measure", bytes, s.str(), "use a smaller --samples");
+}
+
+}  // namespace
+
+DistanceReport measureDistance(const Mesh& a, const Mesh& b, const MeasureOptions& options, Interrupter* interrupter) {
   checkOptions(options);
   validateMesh(a, "first mesh");
   validateMesh(b, "second mesh");
+  checkMeasureMemory(a, b, options, "first mesh");
+  checkMeasureMemory(b, a, options, "second mesh");
   DistanceReport r;
   r.diagonalA = bboxDiagonal(a);
   r.diagonalB = bboxDiagonal(b);
   {
     const TriangleBvh treeB(b);
     const MeshSamples samplesA = sampleMesh(a, options);
-    r.forward = oneSided(samplesA, treeB);
+    poll(interrupter, 0.0, "measure");
+    r.forward = oneSided(samplesA, treeB, interrupter, 0.0, 50.0);
   }
   {
     const TriangleBvh treeA(a);
     MeasureOptions ob = options;
     ob.seed = options.seed + 1;
     const MeshSamples samplesB = sampleMesh(b, ob);
-    r.backward = oneSided(samplesB, treeA);
+    r.backward = oneSided(samplesB, treeA, interrupter, 50.0, 100.0);
   }
   r.hausdorff = std::max(r.forward.max, r.backward.max);
   return r;
@@ -410,13 +447,14 @@ std::vector<OffsetReport::Component> offsetComponents(const Mesh& offsetMesh, co
 }
 
 OffsetReport measureOffset(const Mesh& offsetMesh, const Mesh& surface, double delta,
-                           const MeasureOptions& options) {
+                           const MeasureOptions& options, Interrupter* interrupter) {
   checkOptions(options);
   if (!std::isfinite(delta) || delta == 0.0) {
     throw InvalidArgument("offset measurement: delta must be a non-zero number (got " + std::to_string(delta) + ")");
   }
   validateMesh(offsetMesh, "offset mesh");
   validateMesh(surface, "surface mesh");
+  checkMeasureMemory(offsetMesh, surface, options, "offset mesh");
   const TriangleBvh tree(surface);
   const PseudoNormals normals(surface);
   const MeshSamples samples = sampleMesh(offsetMesh, options);
@@ -426,23 +464,30 @@ OffsetReport measureOffset(const Mesh& offsetMesh, const Mesh& surface, double d
   const bool inward = delta > 0.0;
   long long wrong = 0;
   const double* q = samples.points.data();
-  measure_detail::ParallelErrors errors;
-#pragma omp parallel reduction(+ : wrong) default(none) shared(tree, normals, q, n, dist, dev, absDelta, inward, errors)
-  {
-    std::int64_t hint = -1;  // consecutive samples are near each other (same face of O)
+  poll(interrupter, 0.0, "offset measurement");
+  // In chunks of samples, polling the interrupter between them (outside the parallel region).
+  for (long long begin = 0; begin < n; begin += kPollChunk) {
+    const long long end = std::min<long long>(n, begin + kPollChunk);
+    measure_detail::ParallelErrors errors;
+#pragma omp parallel reduction(+ : wrong) default(none) \
+    shared(tree, normals, q, begin, end, dist, dev, absDelta, inward, errors)
+    {
+      std::int64_t hint = -1;  // consecutive samples are near each other (same face of O)
 #pragma omp for schedule(dynamic, 256)
-    for (long long i = 0; i < n; ++i) {
-      errors.run([&] {
-        const Eigen::Vector3d p(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
-        const ClosestPoint cp = tree.closest(p, hint);
-        const double side = (p - cp.point).dot(normals.at(cp));
-        if (inward ? side > 0.0 : side < 0.0) ++wrong;
-        dist[static_cast<std::size_t>(i)] = cp.distance;
-        dev[static_cast<std::size_t>(i)] = std::abs(cp.distance - absDelta);
-      });
+      for (long long i = begin; i < end; ++i) {
+        errors.run([&] {
+          const Eigen::Vector3d p(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
+          const ClosestPoint cp = tree.closest(p, hint);
+          const double side = (p - cp.point).dot(normals.at(cp));
+          if (inward ? side > 0.0 : side < 0.0) ++wrong;
+          dist[static_cast<std::size_t>(i)] = cp.distance;
+          dev[static_cast<std::size_t>(i)] = std::abs(cp.distance - absDelta);
+        });
+      }
     }
+    errors.rethrow();
+    poll(interrupter, 95.0 * static_cast<double>(end) / static_cast<double>(n), "offset measurement");
   }
-  errors.rethrow();
   OffsetReport r;
   r.delta = delta;
   r.samples = static_cast<std::size_t>(n);

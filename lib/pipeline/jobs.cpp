@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iomanip>
+#include <memory>
 #include <sstream>
 #include <utility>
 
@@ -135,7 +136,9 @@ DistanceJobResult runDistanceJob(const std::string& pathA, const std::string& pa
   r.options = options;
   r.a = loadMeasuredMesh(pathA, interrupter);
   r.b = loadMeasuredMesh(pathB, interrupter);
-  r.report = measureDistance(r.a.mesh, r.b.mesh, options);
+  if (interrupter) interrupter->start("measure");
+  r.report = measureDistance(r.a.mesh, r.b.mesh, options, interrupter);
+  if (interrupter) interrupter->end();
   r.seconds = since(t);
   log(interrupter, "measured " + std::to_string(r.report.forward.samples + r.report.backward.samples) +
                        " samples in " + num(r.seconds, 3) + " s");
@@ -151,7 +154,9 @@ OffsetJobResult runOffsetJob(const std::string& offsetPath, const std::string& s
   r.options = options;
   r.offset = loadMeasuredMesh(offsetPath, interrupter);
   r.surface = loadMeasuredMesh(surfacePath, interrupter);
-  r.report = measureOffset(r.offset.mesh, r.surface.mesh, delta, options);
+  if (interrupter) interrupter->start("measure");
+  r.report = measureOffset(r.offset.mesh, r.surface.mesh, delta, options, interrupter);
+  if (interrupter) interrupter->end();
   r.seconds = since(t);
   log(interrupter, "measured " + std::to_string(r.report.samples) + " samples in " + num(r.seconds, 3) + " s");
   return r;
@@ -183,8 +188,10 @@ DenoiseJobResult runDenoiseJob(const Device& device, const std::string& inputPat
   }
   log(interrupter, "read " + std::to_string(file.points.size()) + " points from " + inputPath);
   if (interrupter && interrupter->wasInterrupted()) throw Cancelled("cancelled before denoise");
-  BilateralReport& rep = r.report;
-  r.points = bilateralFilter(file.points, options, device, &rep);
+  BilateralResult filtered = bilateralFilter(device, file.points, options, interrupter);
+  r.points = std::move(filtered.points);
+  r.report = filtered.report;
+  const BilateralReport& rep = r.report;
   log(interrupter, "filtered: sigma_s " + std::to_string(rep.sigmaSpatial) + ", sigma_r " +
                        std::to_string(rep.sigmaRange) + ", radius " + std::to_string(rep.radius) + ", " +
                        std::to_string(rep.meanNeighbors) + " neighbours a point, " + std::to_string(rep.seconds) +
@@ -210,12 +217,14 @@ NormalsJobResult runNormalsJob(const Device& device, const std::string& inputPat
     return r;
   }
   if (interrupter && interrupter->wasInterrupted()) throw Cancelled("cancelled before normals");
-  NormalReport& rep = r.report;
   try {
-    r.points = estimateNormals(file.points.positions(), options, device, &rep);
+    NormalResult estimated = estimateNormals(device, file.points.positions(), options, interrupter);
+    r.points = std::move(estimated.points);
+    r.report = estimated.report;
   } catch (const InvalidArgument& e) {
     throw InvalidArgument(inputPath + ": " + e.what());
   }
+  const NormalReport& rep = r.report;
   log(interrupter, "estimated normals: k " + std::to_string(rep.k) + ", " + std::to_string(rep.components) +
                        " component(s), " + std::to_string(rep.flippedComponents) + " flipped outward, " +
                        std::to_string(rep.degenerate) + " degenerate, " + std::to_string(rep.seconds) + " s");
@@ -335,29 +344,153 @@ SectionJobResult runSectionJob(const Device& device, const SectionJob& job, Inte
 
 // ---- slice ---------------------------------------------------------------------------------------------
 
+namespace {
+
+/// The job's slicer: the field itself, or with drain holes the drained solid min(f, δ − f, holes) sliced
+/// as a zero-mode function (its derivatives those of the active piece, for the adaptive thickness).
+Slicer makeSlicer(const Device& device, const ImplicitField& field, const SliceJobOptions& options) {
+  const SliceOptions& o = options.slice;
+  if (options.drainHoles.empty()) return Slicer(device, field, o);
+  if (o.mode != SliceMode::Shell) throw InvalidArgument("--drain-hole needs --mode shell (holes drain a cavity)");
+  const std::vector<double>& offsets = field.offsets();
+  if (o.offsetIndex < 0 || o.offsetIndex >= static_cast<int>(offsets.size())) {
+    throw InvalidArgument("--offset-index " + std::to_string(o.offsetIndex) + " is out of range (the field has " +
+                          std::to_string(offsets.size()) + " offsets)");
+  }
+  const double delta = offsets[static_cast<std::size_t>(o.offsetIndex)];
+  if (!(delta > 0.0)) {
+    throw InvalidArgument("--drain-hole needs an inward offset (delta > 0); offset " + std::to_string(o.offsetIndex) +
+                          " of the field is " + num(delta, 6));
+  }
+  for (const DrainHole& h : options.drainHoles) {
+    if (!h.point.allFinite() || !(h.radius > 0.0) || !std::isfinite(h.radius)) {
+      throw InvalidArgument("--drain-hole: the point must be finite and the radius > 0");
+    }
+  }
+  const auto evaluator = std::make_shared<const FieldEvaluator>(device, field, o.precision);
+  FieldFunction drained = [evaluator, delta, holes = options.drainHoles](const Points& q, FieldDerivatives d) {
+    return drainedShellSamples(q, evaluator->evaluate(q, d), delta, holes);
+  };
+  SliceOptions zero = o;
+  zero.mode = SliceMode::Zero;
+  return Slicer(std::move(drained), field.bounds(), offsets, zero);
+}
+
+/// The SLA package's requirements (before slicing): libzip, a plain .sl1 name, uniform layers, mm, plate
+/// placement, a plate that is the display, a part's box (size `part`, height `height`, mm) that fits it.
+void checkSl1Job(const SliceJobOptions& options, const SliceOptions& used, double height, const Eigen::Vector2d& part) {
+  const std::string& name = options.sl1;
+  if (!sl1Available()) {
+    throw InvalidArgument("--sl1 " + name + ": this build of duplexfit has no libzip (Debian: libzip-dev), so it "
+                          "cannot write SL1 packages; rebuild with libzip-dev installed");
+  }
+  std::string lower = name;
+  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const bool extension = (lower.size() > 4 && lower.compare(lower.size() - 4, 4, ".sl1") == 0) ||
+                         (lower.size() > 5 && lower.compare(lower.size() - 5, 5, ".sl1s") == 0);
+  if (fs::path(name).filename().string() != name || !extension) {
+    throw InvalidArgument("--sl1 " + name + ": give a file name ending in .sl1 (or .sl1s), without a folder; the "
+                          "package is written in the output folder (-o DIR)");
+  }
+  validateSl1Options(options.sl1Options);
+  if (!(used.layer > 0.0)) {
+    throw InvalidArgument("--sl1 " + name + ": an SL1 package has one layer height; slice with uniform layers "
+                          "(--layer H, in model units) instead of adaptive ones (--cusp)");
+  }
+  if (options.unitsName != "mm" || options.units != 1.0) {
+    throw InvalidArgument("--sl1 " + name + ": the package is in millimetres; use --units mm (the default) and "
+                          "--scale S to bring the model to millimetres");
+  }
+  if (options.placement.place != SlicePlace::Plate) {
+    throw InvalidArgument("--sl1 " + name + ": the part must be placed on the plate (--place plate, the default)");
+  }
+  const Sl1Printer& printer = options.sl1Options.printer;
+  const Eigen::Vector2d display(printer.displayWidth, printer.displayHeight);
+  const Eigen::Vector2d& plate = options.placement.plate;
+  if ((plate.x() != 0.0 || plate.y() != 0.0) && (plate - display).cwiseAbs().maxCoeff() > 1e-9 * display.maxCoeff()) {
+    throw InvalidArgument("--plate " + num(plate.x(), 6) + "x" + num(plate.y(), 6) + " with --sl1: the plate is the "
+                          "printer's display (" + num(display.x(), 6) + "x" + num(display.y(), 6) +
+                          " mm, --sl1-display); leave --plate out");
+  }
+  if (part.x() > display.x() || part.y() > display.y()) {
+    throw InvalidArgument("--sl1 " + name + ": the part's box (" + num(part.x(), 6) + " x " + num(part.y(), 6) +
+                          " mm) is larger than the printer's display (" + num(display.x(), 6) + " x " +
+                          num(display.y(), 6) + " mm, --sl1-display); scale it down (--scale) or turn it (--axis)");
+  }
+  if (height > printer.maxPrintHeight + used.layer) {
+    throw InvalidArgument("--sl1 " + name + ": the part is " + num(height, 6) + " mm tall, more than the printer's " +
+                          num(printer.maxPrintHeight, 6) + " mm");
+  }
+}
+
+}  // namespace
+
 SliceJob::SliceJob(const Device& device, const ImplicitField& field, const SliceJobOptions& options, std::string input)
-    : slicer_(device, field, options.slice),
+    : slicer_(makeSlicer(device, field, options)),
       options_(options),
       input_(std::move(input)),
       deviceSpec_(device.info().spec),
       start_(Clock::now()) {
   const SliceOptions& used = slicer_.options();
   options_.slice = used;
+  options_.slice.mode = options.slice.mode;  // drain holes slice the drained solid as a zero-mode function
   const double pixel = options.maskPixel;
-  if (pixel != 0.0) {
-    if (!(pixel > 0.0)) throw InvalidArgument("--png-xy must be > 0");
-    // Fail before slicing when the masks cannot be made.
-    const Eigen::Vector3d size = slicer_.bounds().sizes();
-    const double w = (size[(used.axis + 1) % 3] + 4 * used.grid) / pixel;
-    const double h = (size[(used.axis + 2) % 3] + 4 * used.grid) / pixel;
-    if (w > 65536.0 || h > 65536.0) {
-      throw InvalidArgument("--png-xy " + std::to_string(pixel) + " gives masks larger than 65536 pixels a side");
+  PlacementOptions& place = options_.placement;
+  const double s = place.scale;
+  if (!(s > 0.0) || !std::isfinite(s)) throw InvalidArgument("--scale must be > 0 (got " + num(s, 6) + ")");
+  if (!(options.units > 0.0) || !std::isfinite(options.units)) {
+    throw InvalidArgument("--units: " + num(options.units, 6) + " millimetres per unit (must be > 0)");
+  }
+  const bool plateGiven = place.plate.x() != 0.0 || place.plate.y() != 0.0;
+  if (plateGiven && !(place.plate.x() > 0.0 && place.plate.y() > 0.0 && place.plate.allFinite())) {
+    throw InvalidArgument("--plate must be two positive sizes WxD (got " + num(place.plate.x(), 6) + "x" +
+                          num(place.plate.y(), 6) + ")");
+  }
+  if (plateGiven && place.place == SlicePlace::None) throw InvalidArgument("--plate needs --place plate");
+  if (pixel != 0.0 && !(pixel > 0.0 && std::isfinite(pixel))) throw InvalidArgument("--png-xy must be > 0");
+  place.plateStep = pixel > 0.0 ? pixel : 0.0;
+  // Fail before slicing when the part's box clearly exceeds the plate (the loops are checked after
+  // slicing) or the masks cannot be made.
+  const Eigen::Vector3d size = slicer_.bounds().sizes();
+  const Eigen::Vector2d part = s * Eigen::Vector2d(size[(used.axis + 1) % 3], size[(used.axis + 2) % 3]);
+  const double margin = 4.0 * used.grid * s;
+  if (!options.sl1.empty()) {
+    checkSl1Job(options, used, s * size[used.axis], part);
+    options_.sl1Options.hollow = options.slice.mode == SliceMode::Shell;
+    const Sl1Printer& printer = options.sl1Options.printer;
+    place.plate = Eigen::Vector2d(printer.displayWidth, printer.displayHeight);  // the plate is the display
+    place.plateStep = 0.0;
+    if (pixel > 0.0 && (place.plate.x() / pixel > 65536.0 || place.plate.y() / pixel > 65536.0)) {
+      throw InvalidArgument("--png-xy " + num(pixel, 6) + " gives masks larger than 65536 pixels a side");
     }
+    // One layer image at a time at the display's resolution (8-bit, its PNG and the zip's buffers), and the masks.
+    const double displayPixels = static_cast<double>(printer.pixelsX) * static_cast<double>(printer.pixelsY);
+    const double maskPixels = pixel > 0.0 ? (place.plate.x() / pixel) * (place.plate.y() / pixel) : 0.0;
+    requireMemory(used.limits, "slice", 4.0 * (displayPixels + maskPixels),
+                  "the " + std::to_string(printer.pixelsX) + " x " + std::to_string(printer.pixelsY) + " SL1 layer images",
+                  "use fewer --sl1-pixels or a larger --png-xy");
+    return;  // the part's box was checked against the display
+  }
+  if (plateGiven && (part.x() > place.plate.x() + margin || part.y() > place.plate.y() + margin)) {
+    throw InvalidArgument("--plate " + num(place.plate.x(), 6) + "x" + num(place.plate.y(), 6) + ": the part's box (" +
+                          num(part.x(), 6) + " x " + num(part.y(), 6) + ") is larger than the plate");
+  }
+  if (pixel > 0.0) {
+    const Eigen::Vector2d area = plateGiven ? place.plate : Eigen::Vector2d(part.array() + margin);
+    if (area.x() / pixel > 65536.0 || area.y() / pixel > 65536.0) {
+      throw InvalidArgument("--png-xy " + num(pixel, 6) + " gives masks larger than 65536 pixels a side");
+    }
+    // One mask at a time: the 8-bit image, its PNG rows and compression buffers.
+    const double pixels = (area.x() / pixel) * (area.y() / pixel);
+    requireMemory(used.limits, "slice", 4.0 * pixels,
+                  "a " + num(area.x() / pixel, 6) + " x " + num(area.y() / pixel, 6) + " pixel PNG mask (--png-xy " +
+                      num(pixel, 6) + ")",
+                  "use a larger --png-xy");
   }
 }
 
 SliceJobResult SliceJob::run(Interrupter* interrupter) const {
-  const SliceOptions& used = slicer_.options();
+  const SliceOptions& used = options_.slice;
   log(interrupter, std::string("slicing ") + input_ + " along " + "xyz"[used.axis] + ", mode " +
                        sliceModeName(used.mode) +
                        (used.layer > 0.0 ? ", uniform layers " + std::to_string(used.layer)
@@ -370,15 +503,26 @@ SliceJobResult SliceJob::run(Interrupter* interrupter) const {
   r.deviceSpec = deviceSpec_;
   r.options = options_;
   const Clock::time_point t = Clock::now();
-  r.slices = slicer_.run([interrupter](const SliceProgress& p) {
-    if (!interrupter) return true;
-    std::ostringstream line;
-    line << "  layer " << p.layer << "  height " << std::setprecision(6) << p.height << "  thickness " << p.thickness
-         << "  loops " << p.loops << "  (" << std::setprecision(3) << 100.0 * p.fraction << "%)";
-    interrupter->message(line.str());
-    return !interrupter->wasInterrupted(static_cast<int>(std::lround(100.0 * p.fraction)));
-  });
+  if (!options_.drainHoles.empty()) {
+    log(interrupter, std::to_string(options_.drainHoles.size()) +
+                         " drain hole(s): slicing the drained solid min(f, delta - f, hole distances)");
+  }
+  r.slices = slicer_.run(interrupter);
+  r.slices.mode = used.mode;
   r.secondsSlice = since(t);
+  try {
+    r.placement = placeSlices(r.slices, options_.placement);  // InvalidArgument: the part does not fit the plate
+  } catch (const InvalidArgument& e) {
+    if (options_.sl1.empty()) throw;
+    throw InvalidArgument("--sl1 " + options_.sl1 + " (the plate is the printer's display, --sl1-display): " + e.what());
+  }
+  r.placed = applyPlacement(r.slices, r.placement);
+  const Eigen::Vector3d& tr = r.placement.translation;
+  const Eigen::Vector2d plate = r.placement.plate.sizes();
+  log(interrupter, std::string("placement ") + slicePlaceName(r.placement.place) + ": scale " +
+                       num(r.placement.scale, 6) + ", translation (" + num(tr.x(), 6) + ", " + num(tr.y(), 6) + ", " +
+                       num(tr.z(), 6) + ") " + options_.unitsName + ", plate " + num(plate.x(), 6) + " x " +
+                       num(plate.y(), 6) + " " + options_.unitsName);
   for (const SliceLayer& l : r.slices.layers) r.layersTouchingBorder += l.touchesBoundary ? 1 : 0;
   if (r.layersTouchingBorder > 0) {
     log(interrupter, "warning: in " + std::to_string(r.layersTouchingBorder) +
@@ -393,11 +537,33 @@ SliceJobResult runSliceJob(const Device& device, const ImplicitField& field, con
   return SliceJob(device, field, options, input).run(interrupter);
 }
 
+SliceMaskInfo sliceMaskInfo(const SliceJobResult& result) {
+  SliceMaskInfo m;
+  m.pixel = result.options.maskPixel;
+  if (!(m.pixel > 0.0)) return m;
+  const Eigen::AlignedBox2d& plate = result.placement.plate;
+  const Eigen::Vector2d n = maskPixels(plate, m.pixel);
+  if (!(n.x() >= 1.0 && n.y() >= 1.0) || n.x() > 65536.0 || n.y() > 65536.0) {
+    throw InvalidArgument("--png-xy " + num(m.pixel, 6) + " gives " + num(n.x(), 8) + " x " + num(n.y(), 8) +
+                          " pixel masks (1 to 65536 pixels a side)");
+  }
+  m.width = static_cast<int>(n.x());
+  m.height = static_cast<int>(n.y());
+  m.origin = Eigen::Vector2d(plate.min().x(), plate.max().y());
+  m.area = Eigen::AlignedBox2d(Eigen::Vector2d(m.origin.x(), m.origin.y() - n.y() * m.pixel),
+                               Eigen::Vector2d(m.origin.x() + n.x() * m.pixel, m.origin.y()));
+  const double perMetre = 1000.0 / (m.pixel * result.options.units);  // pixel · units = mm per pixel
+  m.dpi = 0.0254 * perMetre;
+  const double rounded = std::round(perMetre);
+  m.pixelsPerMetre = rounded >= 1.0 && rounded <= 2147483647.0 ? static_cast<std::uint32_t>(rounded) : 0u;
+  return m;
+}
+
 SliceOutputs writeSliceOutputs(const SliceJobResult& result, StagedFolder& staging) {
   SliceOutputs out;
   const Clock::time_point t = Clock::now();
-  const SliceResult& slices = result.slices;
-  writeCli(staging.path("slices.cli"), slices, result.options.units);
+  const SliceResult& slices = result.placed;  // output coordinates, output units
+  writeCli(staging.path("slices.cli"), slices, result.options.units, result.options.units);
   if (result.options.svgPerLayer) {
     const std::string dir = staging.path("svg", true);
     for (std::size_t i = 0; i < slices.layers.size(); ++i) {
@@ -409,18 +575,21 @@ SliceOutputs writeSliceOutputs(const SliceJobResult& result, StagedFolder& stagi
   const double pixel = result.options.maskPixel;
   if (pixel > 0.0) {
     const std::string dir = staging.path("masks", true);
-    const Eigen::AlignedBox2d box = planeBox(slices);
+    const SliceMaskInfo mask = sliceMaskInfo(result);
     for (std::size_t i = 0; i < slices.layers.size(); ++i) {
-      const Image img = rasterizeLayer(slices.layers[i], box, pixel);
+      const Image img = rasterizeLayer(slices.layers[i], mask.area, pixel);
       std::size_t white = 0;
       for (std::uint8_t p : img.pixels) white += p != 0 ? 1 : 0;
       out.maskArea.push_back(static_cast<double>(white) * pixel * pixel);
-      writePng((fs::path(dir) / layerName(i, "png")).string(), img);
+      writePng((fs::path(dir) / layerName(i, "png")).string(), img, mask.pixelsPerMetre);
     }
+  }
+  if (!result.options.sl1.empty()) {
+    out.sl1 = writeSl1(staging.path(result.options.sl1), slices, result.options.sl1Options);
   }
   out.secondsWrite = since(t);
   std::ostringstream report;
-  writeSliceJson(report, result, out.maskArea, out.secondsWrite);
+  writeSliceJson(report, result, out.maskArea, out.secondsWrite, out.sl1 ? &*out.sl1 : nullptr);
   out.report = report.str();
   {
     AtomicFile f(staging.path("slices.json"));

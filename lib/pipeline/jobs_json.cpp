@@ -147,6 +147,17 @@ void writeCheckJson(std::ostream& out, const CheckJobResult& result) {
                   {"degenerate_faces", c.validation.degenerateFaces()},
                   {"repeated_index_faces", c.validation.repeatedIndexFaces},
                   {"zero_area_faces", c.validation.zeroAreaFaces},
+                  // corners rounded to float32 (STL, binary PLY) coincide or have zero area: always invalid
+                  {"float32_degenerate_faces", c.quality.float32DegenerateFaces},
+                  {"first_float32_degenerate_face", c.quality.firstFloat32DegenerateFace},
+                  {"sliver_angle", c.quality.sliverAngle},
+                  {"slivers", c.quality.slivers},
+                  {"too_many_slivers", c.tooManySlivers},
+                  {"min_angle", c.quality.minAngle},
+                  {"worst_face", c.quality.worstFace},
+                  {"shortest_edge", c.quality.shortestEdge},
+                  {"min_angle_histogram",
+                   {{"below_1", c.quality.below1}, {"below_5", c.quality.below5}, {"below_10", c.quality.below10}}},
                   {"self_intersections_checked", c.selfIntersectionsChecked},
                   {"self_intersections", c.selfIntersectionsChecked ? Json(c.selfIntersections) : Json()},
                   // false: the per-face work bound was reached and self_intersections is a lower bound
@@ -216,6 +227,12 @@ void writeCheckText(std::ostream& out, const CheckJobResult& result) {
       << "genus                  " << (c.genusKnown ? std::to_string(c.genus) : std::string("-")) << "\n"
       << "degenerate triangles   " << c.validation.degenerateFaces() << " (" << c.validation.repeatedIndexFaces
       << " repeated index, " << c.validation.zeroAreaFaces << " zero area)\n"
+      << "float32-degenerate     " << c.quality.float32DegenerateFaces
+      << " (corners rounded to float32 coincide or have zero area)\n"
+      << "slivers                " << c.quality.slivers << " below " << num(c.quality.sliverAngle) << " deg"
+      << (c.tooManySlivers ? " (too many)" : "") << "; min angle " << num(c.quality.minAngle) << " deg (face "
+      << c.quality.worstFace << "); below 1/5/10 deg: " << c.quality.below1 << " / " << c.quality.below5 << " / "
+      << c.quality.below10 << "\n"
       << "self-intersections     "
       << (!c.selfIntersectionsChecked ? std::string("not checked")
           : c.selfIntersectionsComplete
@@ -354,22 +371,25 @@ SliceStats sliceStats(const SliceResult& result) {
 }
 
 void writeSliceJson(std::ostream& out, const SliceJobResult& job, const std::vector<double>& maskArea,
-                    double writeSeconds) {
-  const SliceResult& result = job.slices;
-  const SliceStats stats = sliceStats(result);
-  const std::size_t n = result.layers.size();
+                    double writeSeconds, const Sl1Summary* sl1) {
+  const SliceResult& result = job.slices;  // the slicer's parameters, model units
+  const SliceResult& placed = job.placed;  // the layers in output coordinates
+  const SliceStats stats = sliceStats(placed);
+  const std::size_t n = placed.layers.size();
   Json heights = Json::array(), areas = Json::array(), loopsPerLayer = Json::array(), layers = Json::array();
-  for (const SliceLayer& l : result.layers) {
+  for (const SliceLayer& l : placed.layers) {
     heights.push_back(l.height);
     areas.push_back(l.area);
     loopsPerLayer.push_back(l.loops.size());
   }
   for (std::size_t i = 0; i < n; ++i) {
-    const SliceLayer& l = result.layers[i];
+    const SliceLayer& l = placed.layers[i];
     std::size_t outer = 0;
     for (const SliceLoop& p : l.loops) outer += p.outer() ? 1 : 0;
     Json j{{"index", i + 1},
            {"height", l.height},
+           {"bottom", l.height},
+           {"top", l.height + l.thickness},
            {"thickness", l.thickness},
            {"raw_thickness", l.rawThickness},
            {"area", l.area},
@@ -381,8 +401,24 @@ void writeSliceJson(std::ostream& out, const SliceJobResult& job, const std::vec
     if (l.touchesBoundary) j["touches_border"] = true;
     layers.push_back(std::move(j));
   }
+  const SlicePlacement& place = job.placement;
+  const std::string axes = "xyz", u(1, axes[(result.axis + 1) % 3]), v(1, axes[(result.axis + 2) % 3]);
+  const Eigen::Vector3d& t = place.translation;
+  Json placement{{"place", slicePlaceName(place.place)},
+                 {"scale", place.scale},
+                 {"units", job.options.unitsName},
+                 {"units_mm", job.options.units},
+                 {"translation", vec(t)},
+                 {"model_axes", {u, v, std::string(1, axes[result.axis])}},
+                 {"map", "output = scale * model + translation, output (x, y, z) = model (model_axes)"},
+                 {"plate", {place.plate.sizes().x(), place.plate.sizes().y()}},
+                 {"plate_min", {place.plate.min().x(), place.plate.min().y()}},
+                 {"plate_given", place.plateGiven},
+                 {"part_min", vec(place.part.min())},
+                 {"part_max", vec(place.part.max())},
+                 {"lowest_model", place.lowestModel}};
   const double sliceSeconds = job.secondsSlice;
-  const Json summary{
+  Json summary{
       {"input", job.input},
       {"device", job.deviceSpec},
       {"mode", sliceModeName(result.mode)},
@@ -411,7 +447,52 @@ void writeSliceJson(std::ostream& out, const SliceJobResult& job, const std::vec
       {"layers", std::move(layers)},
       {"seconds", {{"slice", sliceSeconds}, {"write", writeSeconds}, {"total", job.secondsTotal + writeSeconds}}},
       {"layers_per_second", sliceSeconds > 0 ? static_cast<double>(n) / sliceSeconds : 0.0},
-      {"vertices_per_second", sliceSeconds > 0 ? static_cast<double>(result.vertices) / sliceSeconds : 0.0}};
+      {"vertices_per_second", sliceSeconds > 0 ? static_cast<double>(result.vertices) / sliceSeconds : 0.0},
+      {"placement", std::move(placement)}};
+  if (!job.options.drainHoles.empty()) {
+    Json holes = Json::array();
+    for (const DrainHole& h : job.options.drainHoles) {
+      holes.push_back(Json{{"point", vec(h.point)}, {"radius", h.radius}});
+    }
+    summary["drain_holes"] = std::move(holes);  // only with holes: the layers are then of min(f, delta - f, holes)
+  }
+  if (job.options.maskPixel > 0.0) {
+    const SliceMaskInfo m = sliceMaskInfo(job);
+    summary["masks"] = Json{{"pixel", m.pixel},
+                            {"width_px", m.width},
+                            {"height_px", m.height},
+                            {"origin", {m.origin.x(), m.origin.y()}},
+                            {"origin_is", "the outer corner of pixel (0, 0): columns go +x, rows go -y"},
+                            {"area_min", {m.area.min().x(), m.area.min().y()}},
+                            {"area_max", {m.area.max().x(), m.area.max().y()}},
+                            {"pixels_per_metre", m.pixelsPerMetre},
+                            {"dpi", m.dpi}};
+  }
+  if (sl1 != nullptr) {
+    const Sl1Options& o = job.options.sl1Options;
+    const Sl1Printer& p = o.printer;
+    summary["sl1"] = Json{{"file", job.options.sl1},
+                          {"job_dir", sl1->jobName},
+                          {"layers", sl1->layers},
+                          {"layer_height", sl1->layerHeight},
+                          {"pixel", sl1->pixel},
+                          {"image_px", {sl1->imageWidth, sl1->imageHeight}},
+                          {"display", {p.displayWidth, p.displayHeight}},
+                          {"display_px", {p.pixelsX, p.pixelsY}},
+                          {"orientation", sl1OrientationName(p.orientation)},
+                          {"mirror", {p.mirrorX, p.mirrorY}},
+                          {"printer_model", p.model},
+                          {"exposure", o.exposure},
+                          {"initial_exposure", o.initialExposure},
+                          {"fade_layers", o.fadeLayers},
+                          {"num_fast", sl1->numFast},
+                          {"num_slow", sl1->numSlow},
+                          {"print_time", sl1->printTime},
+                          {"used_material_ml", sl1->usedMaterial},
+                          {"exposed_area", sl1->exposedArea},
+                          {"entries", sl1->entries.size()},
+                          {"bytes", sl1->bytes}};
+  }
   print(out, summary);
 }
 

@@ -1,8 +1,9 @@
-// runPipeline: the job of `duplexfit fit` (read, pre-process, fit, extract, self-check), the adaptation of
-// an Interrupter to the per-operation progress callbacks, and runMeshPipeline (`duplexfit mesh`).
+// runPipeline: the job of `duplexfit fit` (read, pre-process, fit, extract, self-check), and
+// runMeshPipeline (`duplexfit mesh`). Every operation gets the caller's Interrupter as it is.
 #include "duplexfit/pipeline.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <iomanip>
@@ -19,7 +20,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-/// The Interrupter (or none) behind the per-operation callbacks, with the stage bookkeeping.
+/// The Interrupter (or none) of a pipeline run, with the stage bookkeeping.
 class Progress {
  public:
   explicit Progress(Interrupter* interrupter) : i_(interrupter) {}
@@ -37,20 +38,7 @@ class Progress {
   void check(const char* before) const {
     if (i_ && i_->wasInterrupted()) throw Cancelled(std::string("cancelled before ") + before);
   }
-  FitProgressCallback fit() const {
-    if (!i_) return {};
-    Interrupter* i = i_;
-    return [i](const FitProgress& p) {
-      i->fitEvent(p);
-      const int percent = p.levels > 0 && p.level > 0 ? 100 * (p.level - 1) / p.levels : -1;
-      return !i->wasInterrupted(percent);
-    };
-  }
-  PolygonizeProgress polygonize() const {
-    if (!i_) return {};
-    Interrupter* i = i_;
-    return [i](double fraction) { return !i->wasInterrupted(static_cast<int>(std::lround(100.0 * fraction))); };
-  }
+  Interrupter* interrupter() const { return i_; }
 
  private:
   Interrupter* i_;
@@ -95,95 +83,132 @@ void logSelfCheck(const SelfCheckReport& r, const Progress& progress) {
   progress.log(line.str());
 }
 
-/// Everything after the points are read: normals, merge, denoise, fit, surfaces, self-check, topology.
-PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::string inputName, double readSeconds,
-                           const PipelineOptions& options, const Progress& progress, Clock::time_point start) {
-  PipelineResult result;
-  PipelineReport& report = result.report;
-  report.input = std::move(inputName);
-  report.secondsRead = readSeconds;
-  const std::string& input = report.input;
-  const std::string source = input.empty() ? std::string("points") : input;
-  const FitOptions& fitOptions = options.fit;
-  const Precision precision = fitOptions.precision;
+std::string numText(double v) {
+  std::ostringstream s;
+  s << std::setprecision(6) << v;
+  return s.str();
+}
 
-  if (options.estimateNormals) {
-    NormalOptions normalOptions = options.normals;
-    normalOptions.precision = precision;
-    NormalReport nr;
-    progress.start("normals");
-    progress.log(std::string(file.report.normals ? "re-estimating" : "estimating") + " normals (k = " +
-                 std::to_string(normalOptions.k) + ") ...");
-    try {
-      file.points = estimateNormals(file.points.positions(), normalOptions, device, &nr);
-    } catch (const InvalidArgument& e) {
-      throw InvalidArgument(source + ": " + e.what());
+/// The shell's options checked before any work: an inward offset, holes only in duplex mode.
+void validateShell(const PipelineOptions& options) {
+  const ShellOptions& s = options.shellOptions;
+  if (!options.shell) {
+    if (s.drained()) throw InvalidArgument("--drain-hole needs --shell (holes are cut in the printable shell)");
+    return;
+  }
+  const std::vector<double>& offsets = options.fit.offsets;
+  if (std::none_of(offsets.begin(), offsets.end(), [](double d) { return d > 0.0; })) {
+    std::string given;
+    for (double d : offsets) given += (given.empty() ? "" : ",") + numText(d);
+    throw InvalidArgument("--shell needs an inward offset: --offset D with D > 0 (positive = inward)" +
+                          (given.empty() ? std::string(", none given") : "; given: " + given));
+  }
+  if (s.drained() && options.separate) {
+    throw InvalidArgument("--drain-hole needs the duplex field (one field for both surfaces), not --separate");
+  }
+  for (const DrainHole& h : s.drainHoles) {
+    if (!h.point.allFinite() || !(h.radius > 0.0) || !std::isfinite(h.radius)) {
+      throw InvalidArgument("--drain-hole: the point must be finite and the radius > 0 (got radius " +
+                            numText(h.radius) + ")");
     }
-    progress.log("normals: " + std::to_string(nr.components) + " component(s), " +
-                 std::to_string(nr.flippedComponents) + " flipped outward, " + std::to_string(nr.seconds) + " s");
-    progress.end();
-    report.normals = nr;
   }
-  report.duplicatesMerged = file.points.mergeDuplicates();
-  if (options.denoise) {
-    BilateralOptions filter = options.denoiseOptions;
-    filter.precision = precision;
-    BilateralReport br;
-    progress.start("denoise");
-    progress.log("bilateral filter ...");
-    file.points = bilateralFilter(file.points, filter, device, &br);
-    progress.log("bilateral filter: sigma_s " + std::to_string(br.sigmaSpatial) + ", sigma_r " +
-                 std::to_string(br.sigmaRange) + ", mean displacement " + std::to_string(br.meanDisplacement) + ", " +
-                 std::to_string(br.seconds) + " s");
-    progress.end();
-    report.denoise = br;
+  if (s.autoDrainHoles && !(s.autoDrainRadius >= 0.0 && std::isfinite(s.autoDrainRadius))) {
+    throw InvalidArgument("--drain-hole auto: the radius must be > 0");
   }
-  checkFittable(file.points, source);  // errors name the file
-  progress.log("read " + std::to_string(file.report.points) + " points from " + input + " (" +
-               std::to_string(report.duplicatesMerged) + " duplicates merged) in " + std::to_string(report.secondsRead) +
-               " s");
-  report.read = file.report;
-  report.separate = options.separate;
-  report.sideTest = fitOptions.sideTest;
+}
 
-  // Duplex mode: one field, every surface a level set of it. Separate mode: one field per surface, each
-  // surface the 0-level of its own field (the baseline of the paper's Table 1).
-  progress.start("fit");
-  FitReport& rep = report.fit;
-  std::shared_ptr<const FieldEvaluator> evaluator;  // the duplex fit's, reused by the extraction
-  if (options.separate) {
-    SeparateFitResult sep = fitSeparate(device, file.points, fitOptions, progress.fit());
-    rep = sep.zeroReport;
-    rep.offsets = sep.offsetDeltas;
-    rep.secondsTotal = sep.secondsTotal;
-    for (const FitReport& r : sep.offsetReports) rep.eDelta.push_back(r.e0);  // each at its own points
-    report.separateFits.push_back(std::move(sep.zeroReport));
-    report.separateFittedPoints.push_back(file.points.size());
-    for (std::size_t j = 0; j < sep.offsets.size(); ++j) {
-      report.separateFits.push_back(std::move(sep.offsetReports[j]));
-      report.separateFittedPoints.push_back(sep.offsetPoints[j]);
-    }
-    result.fields.push_back(std::move(sep.zero));
-    for (ImplicitField& f : sep.offsets) result.fields.push_back(std::move(f));
+/// One line about a shell: its mesh, volumes and intersections.
+std::string shellSummary(const ShellReport& r) {
+  const MeshTopology& t = r.topology;
+  std::ostringstream line;
+  line << std::setprecision(5) << "shell (iso 0 and " << r.offset << "): " << t.faces << " triangles, " << t.components
+       << " component(s), " << (t.watertight() && t.manifold() && t.oriented() ? "watertight oriented 2-manifold"
+                                                                             : "NOT watertight/manifold/oriented")
+       << ", volume " << r.volume << " (zero - offset " << r.zeroMinusOffsetVolume() << ", relative difference "
+       << r.relativeDifference() << "), ";
+  if (!r.intersectionsChecked) {
+    line << "intersections not checked";
   } else {
-    FitResult fitted = fit(device, file.points, fitOptions, progress.fit());
-    rep = std::move(fitted.report);
-    result.fields.push_back(std::move(fitted.field));
-    evaluator = std::move(fitted.evaluator);
+    line << (r.intersects() ? std::to_string(r.intersections) + " intersecting triangle pair(s)" : "no intersection")
+         << (r.intersectionsComplete ? "" : " (check stopped at its work bound)");
   }
-  rep.duplicatesMerged = report.duplicatesMerged;
-  progress.end();
-  const auto warnUnconverged = [&](const FitReport& r) {
-    for (const LevelReport& l : r.levelReports) {
-      if (l.solve.iterations > 0 && !l.solve.converged) {
-        progress.log("warning: level " + std::to_string(l.level) + " CG did not converge (" +
-                     stopReasonName(l.solve.reason) + ", residual " + std::to_string(l.solve.relativeResidual) + ")");
-      }
-    }
-  };
-  warnUnconverged(rep);
-  for (std::size_t j = 1; j < report.separateFits.size(); ++j) warnUnconverged(report.separateFits[j]);
+  if (!r.drainHoles.empty()) line << ", " << r.drainHoles.size() << " drain hole(s)";
+  if (r.droppedCavities > 0) line << ", " << r.droppedCavities << " small cavity(ies) filled";
+  return line.str();
+}
 
+/// A warning per hole narrower than two grid cells (its mesh is then coarse).
+void warnCoarseHoles(const ShellReport& r, const GridSpec& grid, const Progress& progress) {
+  const double cell = grid.cellSize().maxCoeff();
+  for (const DrainHole& h : r.drainHoles) {
+    if (h.radius < 2.0 * cell) {
+      progress.log("warning: drain hole radius " + numText(h.radius) + " is under two grid cells (" + numText(cell) +
+                   "): its mesh is coarse; use a smaller --cell");
+    }
+  }
+}
+
+/// One progress line per finished mesh: what the cleaning and simplification did, and the deviation.
+void logFinish(const std::string& name, const MeshFinishReport& r, const Progress& progress) {
+  std::ostringstream line;
+  line << std::setprecision(4) << name << ": ";
+  if (r.clean.facesBefore > 0) {
+    line << r.clean.collapses << " edges collapsed, " << r.clean.flips << " flipped, " << r.clean.facesBefore
+         << " -> " << r.clean.facesAfter << " triangles, " << r.clean.float32DegenerateBefore << " -> "
+         << r.clean.float32DegenerateAfter << " float32-degenerate; ";
+  }
+  if (r.simplify.applied) {
+    line << "simplified " << r.simplify.facesBefore << " -> " << r.simplify.facesAfter << " triangles"
+         << (r.simplify.fallback ? " (meshoptimizer changed the topology: by the library's own collapses)" : "")
+         << (r.simplify.topologyKept ? "" : " (not: the topology changed)") << "; ";
+  }
+  if (r.deviationMeasured) {
+    line << "deviation from the level set " << r.deviation.max << " (" << 100.0 * r.deviation.relativeMax
+         << "% of the largest side)";
+  }
+  progress.log(line.str());
+}
+
+/// finishSurfaces on the pipeline's meshes in place: one call with the fit's evaluator in duplex mode (or
+/// one built here), one per field in separate mode.
+std::vector<MeshFinishReport> finishMeshes(const Device& device, const std::vector<ImplicitField>& fields,
+                                           const FieldEvaluator* evaluator, std::vector<Mesh>& meshes,
+                                           const std::vector<double>& isos, bool separate, double cell,
+                                           const MeshFinishOptions& options, Precision precision,
+                                           const Progress& progress) {
+  progress.start("finish");
+  std::vector<MeshFinishReport> reports;
+  if (!separate) {
+    std::unique_ptr<FieldEvaluator> own;
+    if (!evaluator) {
+      own = std::make_unique<FieldEvaluator>(device, fields[0], precision);
+      evaluator = own.get();
+    }
+    FinishResult r = finishSurfaces(*evaluator, fields[0], std::move(meshes), isos, cell, options,
+                                    progress.interrupter());
+    meshes = std::move(r.meshes);
+    reports = std::move(r.reports);
+  } else {
+    for (std::size_t i = 0; i < meshes.size(); ++i) {
+      const FieldEvaluator e(device, fields[i], precision);
+      std::vector<Mesh> one;
+      one.push_back(std::move(meshes[i]));
+      FinishResult r = finishSurfaces(e, fields[i], std::move(one), {0.0}, cell, options, progress.interrupter());
+      meshes[i] = std::move(r.meshes[0]);
+      reports.push_back(r.reports[0]);
+    }
+  }
+  for (std::size_t i = 0; i < reports.size(); ++i) logFinish(surfaceName(static_cast<int>(i)), reports[i], progress);
+  progress.end();
+  return reports;
+}
+
+/// After the fit: the surfaces, the self-check against `checkPoints`, clean-up and topology, the shell.
+void extractAndFinish(const Device& device, PipelineResult& result, std::shared_ptr<const FieldEvaluator> evaluator,
+                      const Points& checkPoints, const PipelineOptions& options, const Progress& progress) {
+  PipelineReport& report = result.report;
+  const FitReport& rep = report.fit;
+  const Precision precision = options.fit.precision;
   auto t = Clock::now();
   std::vector<double> isos{0.0};
   isos.insert(isos.end(), rep.offsets.begin(), rep.offsets.end());
@@ -194,8 +219,8 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
   std::vector<SurfaceResult> extracted;
   std::vector<Mesh> meshes;
   if (!options.separate) {
-    extracted.push_back(evaluator ? extractSurfaces(*evaluator, result.fields[0], isos, surface, progress.polygonize())
-                                  : extractSurfaces(device, result.fields[0], isos, surface, progress.polygonize()));
+    extracted.push_back(evaluator ? extractSurfaces(*evaluator, result.fields[0], isos, surface, progress.interrupter())
+                                  : extractSurfaces(device, result.fields[0], isos, surface, progress.interrupter()));
     meshes = std::move(extracted.back().meshes);
   } else {
     // The separate fields share the zero field's grid cell unless the user chose one, so that both modes
@@ -204,7 +229,7 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
       surface.cell = surfaceGrid(result.fields[0], isos, surface).cellSize().maxCoeff();
     }
     for (const ImplicitField& f : result.fields) {
-      extracted.push_back(extractSurfaces(device, f, {0.0}, surface, progress.polygonize()));
+      extracted.push_back(extractSurfaces(device, f, {0.0}, surface, progress.interrupter()));
       meshes.push_back(std::move(extracted.back().meshes[0]));
     }
   }
@@ -225,9 +250,16 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
   // Every fit checks itself: zero-level components without input points and offset components away from
   // |delta| are listed; components below the minimum area fractions are dropped first.
   progress.start("self-check");
-  report.selfCheck = cleanAndSelfCheck(meshes, isos, file.points.positions(), options.selfCheck);
+  report.selfCheck = cleanAndSelfCheck(meshes, isos, checkPoints, options.selfCheck);
   logSelfCheck(report.selfCheck, progress);
   progress.end();
+
+  // Cleaning, simplification when asked, and every mesh's deviation from its level set.
+  t = Clock::now();
+  const std::vector<MeshFinishReport> finished =
+      finishMeshes(device, result.fields, evaluator.get(), meshes, isos, options.separate,
+                   first.grid.cellSize().maxCoeff(), options.surface.finish, precision, progress);
+  report.secondsFinish = secondsSince(t);
 
   for (std::size_t i = 0; i < meshes.size(); ++i) {
     PipelineSurface s;
@@ -236,8 +268,208 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
     s.offset = isos[i];
     s.topology = analyzeTopology(meshes[i]);
     s.mesh = std::move(meshes[i]);
+    s.finish = finished[i];
     result.surfaces.push_back(std::move(s));
   }
+
+  if (options.shell) {
+    progress.start("shell");
+    // The inner surface: the smallest inward offset.
+    std::size_t inner = 0, inward = 0;
+    for (std::size_t i = 1; i < isos.size(); ++i) {
+      if (!(isos[i] > 0.0)) continue;
+      ++inward;
+      if (inner == 0 || isos[i] < isos[inner]) inner = i;
+    }
+    PipelineShell shell;
+    shell.surface = inner;
+    if (inward > 1) {
+      shell.note = std::to_string(inward) + " inward offsets: the shell uses the smallest, " + numText(isos[inner]) +
+                   " (offset" + std::to_string(inner) + ")";
+      progress.log("shell: " + shell.note);
+    }
+    ShellOptions so = options.shellOptions;
+    so.offset = isos[inner];
+    so.minCavityFraction = std::max(options.selfCheck.minAreaFraction, options.selfCheck.minOffsetAreaFraction);
+    const Mesh& zeroMesh = result.surfaces[0].mesh;
+    const Mesh& offsetMesh = result.surfaces[inner].mesh;
+    ShellResult built;
+    if (so.drained()) {
+      // The drained solid min(f, δ − f, holes) on the extraction's grid: away from the holes its mesh is
+      // the zero and offset meshes'.
+      if (!evaluator) evaluator = std::make_shared<FieldEvaluator>(device, result.fields[0], precision);
+      const FieldEvaluator& ev = *evaluator;
+      const FieldSampler sampler = [&ev](const Points& q, Eigen::VectorXd& values) { values = ev.evaluate(q).values; };
+      built = drainShell(sampler, report.grid, zeroMesh, offsetMesh, so, surface.polygonize, progress.interrupter());
+      warnCoarseHoles(built.report, report.grid, progress);
+    } else {
+      built = buildShell(zeroMesh, offsetMesh, so);
+    }
+    shell.mesh = std::move(built.mesh);
+    shell.report = std::move(built.report);
+    progress.log(shellSummary(shell.report));
+    if (!(shell.report.volume > 0.0) || shell.report.intersects()) {
+      progress.log("warning: the shell is not a valid solid (volume <= 0 or intersecting surfaces)");
+    }
+    result.shell = std::move(shell);
+    progress.end();
+  }
+}
+
+/// The options with PipelineOptions::limits handed to every stage (when it is set).
+PipelineOptions withLimits(PipelineOptions o) {
+  if (o.limits.maxMemoryBytes == 0) return o;
+  o.meshSampling.limits = o.limits;
+  o.fit.limits = o.limits;
+  o.normals.limits = o.limits;
+  o.denoiseOptions.limits = o.limits;
+  o.surface.polygonize.limits = o.limits;
+  return o;
+}
+
+/// The extraction's grid as it will be after the fit (from the cloud's bounds and the fit's σ_M), checked
+/// against the budget before the fit: a grid too large is refused before minutes of fitting.
+void checkGridBeforeFit(const PointSet& points, const PipelineOptions& options) {
+  const FitOptions& f = options.fit;
+  const Eigen::AlignedBox3d bounds = points.bounds();
+  const double side = bounds.sizes().maxCoeff();
+  std::vector<double> isos{0.0};
+  for (const double d : f.offsets) isos.push_back(f.offsetsRelative ? d * side : d);
+  const double sigmaM = fitScales(points.positions(), f.alpha, f.levels).sigmaFinest;
+  const GridSpec grid = surfaceGrid(bounds, sigmaM, isos, options.surface);
+  checkPolygonizeMemory(grid, options.separate ? 1 : isos.size(), options.surface.polygonize);
+}
+
+/// Everything after the points are read: normals, merge, denoise, fit, surfaces, self-check, topology.
+PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::string inputName, double readSeconds,
+                           const PipelineOptions& options, const Progress& progress, Clock::time_point start,
+                           std::optional<MeshSampleReport> mesh = std::nullopt) {
+  PipelineResult result;
+  PipelineReport& report = result.report;
+  report.input = std::move(inputName);
+  report.mesh = std::move(mesh);
+  if (report.mesh) report.meshFormat = meshFormatOf(report.input);
+  report.secondsRead = readSeconds;
+  const std::string& input = report.input;
+  const std::string source = input.empty() ? std::string("points") : input;
+  const FitOptions& fitOptions = options.fit;
+  const Precision precision = fitOptions.precision;
+  validateFinishOptions(options.surface.finish);  // before any work (simplification needs meshoptimizer)
+
+  // Far outliers first: they would set the bounding box of everything after (docs/method.md §9).
+  report.outliers = findOutliers(file.points.positions(), options.outliers);
+  std::string outlierHint;
+  if (!report.outliers.indices.empty()) {
+    const std::string what = report.outliers.describe(file.points.positions());
+    if (options.removeOutliers) {
+      std::vector<char> drop(file.points.size(), 0);
+      for (const Index i : report.outliers.indices) drop[static_cast<std::size_t>(i)] = 1;
+      const Points& p = file.points.positions();
+      const Points& nrm = file.points.normals();
+      Points keptP(static_cast<Eigen::Index>(file.points.size() - report.outliers.indices.size()), 3);
+      Points keptN(keptP.rows(), 3);
+      Eigen::Index row = 0;
+      for (std::size_t i = 0; i < drop.size(); ++i) {
+        if (drop[i] != 0) continue;
+        keptP.row(row) = p.row(static_cast<Eigen::Index>(i));
+        keptN.row(row) = nrm.rows() > 0 ? Eigen::RowVector3d(nrm.row(static_cast<Eigen::Index>(i))) : Eigen::RowVector3d::Zero();
+        ++row;
+      }
+      file.points = PointSet(std::move(keptP), std::move(keptN));
+      report.outliersRemoved = report.outliers.indices.size();
+      progress.log("removed " + what);
+    } else {
+      outlierHint = "; " + what + ": --remove-outliers drops them";
+      progress.log("warning: " + what + "; --remove-outliers drops them");
+    }
+  }
+
+  if (options.estimateNormals) {
+    NormalOptions normalOptions = options.normals;
+    normalOptions.precision = precision;
+    progress.start("normals");
+    progress.log(std::string(file.report.normals ? "re-estimating" : "estimating") + " normals (k = " +
+                 std::to_string(normalOptions.k) + ") ...");
+    try {
+      NormalResult estimated = estimateNormals(device, file.points.positions(), normalOptions, progress.interrupter());
+      file.points = std::move(estimated.points);
+      report.normals = estimated.report;
+    } catch (const InvalidArgument& e) {
+      throw InvalidArgument(source + ": " + e.what());
+    }
+    const NormalReport& nr = *report.normals;
+    progress.log("normals: " + std::to_string(nr.components) + " component(s), " +
+                 std::to_string(nr.flippedComponents) + " flipped outward, " + std::to_string(nr.seconds) + " s");
+    progress.end();
+  }
+  report.duplicatesMerged = file.points.mergeDuplicates();
+  if (options.denoise) {
+    BilateralOptions filter = options.denoiseOptions;
+    filter.precision = precision;
+    progress.start("denoise");
+    progress.log("bilateral filter ...");
+    BilateralResult filtered = bilateralFilter(device, file.points, filter, progress.interrupter());
+    file.points = std::move(filtered.points);
+    const BilateralReport& br = filtered.report;
+    progress.log("bilateral filter: sigma_s " + std::to_string(br.sigmaSpatial) + ", sigma_r " +
+                 std::to_string(br.sigmaRange) + ", mean displacement " + std::to_string(br.meanDisplacement) + ", " +
+                 std::to_string(br.seconds) + " s");
+    progress.end();
+    report.denoise = br;
+  }
+  try {
+    checkFittable(file.points, source);  // errors name the file
+  } catch (const InvalidArgument& e) {
+    if (outlierHint.empty()) throw;
+    throw InvalidArgument(e.what() + outlierHint);  // the outliers are the likely cause
+  }
+  progress.log((report.mesh ? "sampled " : "read ") + std::to_string(file.report.points) + " points from " + input + " (" +
+               std::to_string(report.duplicatesMerged) + " duplicates merged) in " + std::to_string(report.secondsRead) +
+               " s");
+  report.read = file.report;
+  report.separate = options.separate;
+  report.sideTest = fitOptions.sideTest;
+  checkGridBeforeFit(file.points, options);
+
+  // Duplex mode: one field, every surface a level set of it. Separate mode: one field per surface, each
+  // surface the 0-level of its own field (the baseline of the paper's Table 1).
+  progress.start("fit");
+  FitReport& rep = report.fit;
+  std::shared_ptr<const FieldEvaluator> evaluator;  // the duplex fit's, reused by the extraction
+  if (options.separate) {
+    SeparateFitResult sep = fitSeparate(device, file.points, fitOptions, progress.interrupter());
+    rep = sep.zeroReport;
+    rep.offsets = sep.offsetDeltas;
+    rep.secondsTotal = sep.secondsTotal;
+    for (const FitReport& r : sep.offsetReports) rep.eDelta.push_back(r.e0);  // each at its own points
+    report.separateFits.push_back(std::move(sep.zeroReport));
+    report.separateFittedPoints.push_back(file.points.size());
+    for (std::size_t j = 0; j < sep.offsets.size(); ++j) {
+      report.separateFits.push_back(std::move(sep.offsetReports[j]));
+      report.separateFittedPoints.push_back(sep.offsetPoints[j]);
+    }
+    result.fields.push_back(std::move(sep.zero));
+    for (ImplicitField& f : sep.offsets) result.fields.push_back(std::move(f));
+  } else {
+    FitResult fitted = fit(device, file.points, fitOptions, progress.interrupter());
+    rep = std::move(fitted.report);
+    result.fields.push_back(std::move(fitted.field));
+    evaluator = std::move(fitted.evaluator);
+  }
+  rep.duplicatesMerged = report.duplicatesMerged;
+  progress.end();
+  const auto warnUnconverged = [&](const FitReport& r) {
+    for (const LevelReport& l : r.levelReports) {
+      if (l.solve.iterations > 0 && !l.solve.converged) {
+        progress.log("warning: level " + std::to_string(l.level) + " CG did not converge (" +
+                     stopReasonName(l.solve.reason) + ", residual " + std::to_string(l.solve.relativeResidual) + ")");
+      }
+    }
+  };
+  warnUnconverged(rep);
+  for (std::size_t j = 1; j < report.separateFits.size(); ++j) warnUnconverged(report.separateFits[j]);
+
+  extractAndFinish(device, result, std::move(evaluator), file.points.positions(), options, progress);
   report.secondsTotal = secondsSince(start);
   return result;
 }
@@ -257,22 +489,59 @@ bool PipelineReport::converged() const noexcept {
   return true;
 }
 
-PipelineResult runPipeline(const Device& device, const std::string& inputPath, const PipelineOptions& options,
+PipelineResult runPipeline(const Device& device, const std::string& inputPath, const PipelineOptions& given,
                            Interrupter* interrupter) {
   const auto start = Clock::now();
+  const PipelineOptions options = withLimits(given);
+  validateShell(options);
   const Progress progress(interrupter);
   progress.start("read");
-  PointReadOptions readOptions;
-  readOptions.requireNormals = !options.estimateNormals;
-  PointCloudFile file = readPointCloudWithReport(inputPath, readOptions);
+  const InputKind kind = options.input == InputKind::Auto ? detectInputKind(inputPath) : options.input;
+  PointCloudFile file;
+  std::optional<MeshSampleReport> meshReport;
+  if (kind == InputKind::Mesh) {
+    if (options.fit.normalsInward) {
+      throw InvalidArgument(inputPath + ": --normals-inward applies to clouds; the samples of a mesh carry its "
+                            "outward face normals (an inside-out mesh is detected and flipped)");
+    }
+    const Mesh mesh = readMesh(inputPath);
+    MeshSampleOptions sampling = options.meshSampling;
+    if (options.estimateNormals && sampling.orientation == MeshOrientation::Require) {
+      sampling.orientation = MeshOrientation::Keep;  // the face normals are replaced anyway
+    }
+    MeshSampleResult sampled = sampleMeshCloud(mesh, sampling, inputPath);
+    const MeshSampleReport& m = sampled.report;
+    std::ostringstream line;
+    line << std::setprecision(4) << "mesh " << inputPath << ": " << m.topology.faces << " triangles, area " << m.area
+         << ", " << (m.topology.watertight() ? "closed" : "OPEN") << ", " << m.samples << " samples (" << m.densityRule
+         << " rule, spacing " << m.spacing << ")";
+    progress.log(line.str());
+    for (const std::string& w : m.warnings) progress.log("warning: " + w);
+    file.points = std::move(sampled.points);
+    file.report.format = PointFormat::Auto;
+    file.report.points = file.points.size();
+    file.report.normals = true;
+    file.report.properties = {"x", "y", "z", "nx", "ny", "nz"};
+    meshReport = std::move(sampled.report);
+  } else {
+    PointReadOptions readOptions;
+    readOptions.requireNormals = !options.estimateNormals;
+    try {
+      file = readPointCloudWithReport(inputPath, readOptions);
+    } catch (const InvalidArgument& e) {  // an unknown extension
+      throw InvalidArgument(std::string(e.what()) + "; as a mesh: .stl, .obj or .ply with faces");
+    }
+  }
   const double readSeconds = secondsSince(start);
   progress.end();
-  return runOnPoints(device, std::move(file), inputPath, readSeconds, options, progress, start);
+  return runOnPoints(device, std::move(file), inputPath, readSeconds, options, progress, start, std::move(meshReport));
 }
 
-PipelineResult runPipeline(const Device& device, const PointSet& points, const PipelineOptions& options,
+PipelineResult runPipeline(const Device& device, const PointSet& points, const PipelineOptions& given,
                            Interrupter* interrupter) {
   const auto start = Clock::now();
+  const PipelineOptions options = withLimits(given);
+  validateShell(options);
   PointCloudFile file{points, {}};
   file.report.points = points.size();
   file.report.normals = true;
@@ -287,6 +556,8 @@ std::vector<std::string> pipelineMeshNames(const PipelineResult& result, const s
   return names;
 }
 
+std::string pipelineShellName(const std::string& meshFormat) { return "shell." + meshFormat; }
+
 std::vector<std::string> pipelineFieldNames(const PipelineResult& result) {
   std::vector<std::string> names;
   for (std::size_t i = 0; i < result.fields.size(); ++i) {
@@ -296,12 +567,13 @@ std::vector<std::string> pipelineFieldNames(const PipelineResult& result) {
 }
 
 void writePipelineOutputs(const PipelineResult& result, StagedFolder& folder, const std::string& meshFormat) {
-  if (meshFormat != "ply" && meshFormat != "obj" && meshFormat != "stl") {
-    throw InvalidArgument("mesh format must be ply, obj or stl, not '" + meshFormat + "'");
+  if (meshFormat != "ply" && meshFormat != "obj" && meshFormat != "stl" && meshFormat != "3mf") {
+    throw InvalidArgument("mesh format must be ply, obj, stl or 3mf, not '" + meshFormat + "'");
   }
   const auto t = Clock::now();
   const std::vector<std::string> meshNames = pipelineMeshNames(result, meshFormat);
   for (std::size_t i = 0; i < meshNames.size(); ++i) writeMesh(folder.path(meshNames[i]), result.surfaces[i].mesh);
+  if (result.shell) writeMesh(folder.path(pipelineShellName(meshFormat)), result.shell->mesh);
   const std::vector<std::string> fieldNames = pipelineFieldNames(result);
   for (std::size_t i = 0; i < fieldNames.size(); ++i) result.fields[i].save(folder.path(fieldNames[i]));
   std::ostringstream json;
@@ -322,11 +594,16 @@ void writePipelineOutputs(const PipelineResult& result, const std::string& outDi
 MeshPipelineResult runMeshPipeline(const Device& device, const ImplicitField& field, double iso,
                                    const SurfaceOptions& options, double minComponent, Interrupter* interrupter) {
   const Progress progress(interrupter);
+  validateFinishOptions(options.finish);
   progress.start("polygonize");
   MeshPipelineResult r;
-  r.extraction = extractSurfaces(device, field, {iso}, options, progress.polygonize());
+  if (field.levels().empty()) throw InvalidArgument("surface extraction: the field has no levels");
+  const FieldEvaluator evaluator(device, field, options.precision);
+  r.extraction = extractSurfaces(evaluator, field, {iso}, options, progress.interrupter());
   progress.end();
-  r.mesh = dropSmallComponents(r.extraction.meshes[0], minComponent, &r.dropped);
+  DropResult kept = dropSmallComponents(r.extraction.meshes[0], minComponent);
+  r.mesh = std::move(kept.mesh);
+  r.dropped = kept.dropped;
   r.extraction.meshes.clear();
   if (r.dropped.components > 0) {
     std::ostringstream line;
@@ -335,8 +612,128 @@ MeshPipelineResult runMeshPipeline(const Device& device, const ImplicitField& fi
          << "% of the area)";
     progress.log(line.str());
   }
+  progress.start("finish");
+  std::vector<Mesh> one;
+  one.push_back(std::move(r.mesh));
+  FinishResult finished = finishSurfaces(evaluator, field, std::move(one), {iso},
+                                         r.extraction.grid.cellSize().maxCoeff(), options.finish,
+                                         progress.interrupter());
+  r.mesh = std::move(finished.meshes[0]);
+  r.finish = finished.reports[0];
+  logFinish("mesh", r.finish, progress);
+  progress.end();
   r.topology = analyzeTopology(r.mesh);
   return r;
+}
+
+ShellPipelineResult runShellPipeline(const Device& device, const ImplicitField& field, const ShellOptions& options,
+                                     const SurfaceOptions& surface, double minComponent, Interrupter* interrupter) {
+  const double delta = options.offset;
+  if (!(delta > 0.0) || !std::isfinite(delta)) {
+    throw InvalidArgument("--shell needs --iso D with D > 0: the inward offset of the inner surface (got " +
+                          numText(delta) + ")");
+  }
+  if (!(minComponent >= 0.0 && minComponent < 1.0)) {
+    throw InvalidArgument("--min-component must be an area fraction in [0, 1)");
+  }
+  const Progress progress(interrupter);
+  ShellPipelineResult r;
+  const std::vector<double>& fitted = field.offsets();
+  if (std::find(fitted.begin(), fitted.end(), delta) == fitted.end()) {
+    std::string list;
+    for (double d : fitted) list += (list.empty() ? "" : ", ") + numText(d);
+    r.note = "the field was fitted with the offsets " + (list.empty() ? std::string("(none)") : list) + "; " +
+             numText(delta) + " is not one of them, so the inner surface is only near that distance";
+    progress.log("note: " + r.note);
+  }
+  progress.start("polygonize");
+  const FieldEvaluator evaluator(device, field, surface.precision);
+  r.extraction = extractSurfaces(evaluator, field, {0.0, delta}, surface, progress.interrupter());
+  progress.end();
+  const double offsetFraction = std::max(minComponent, PipelineOptions::defaultSelfCheck().minOffsetAreaFraction);
+  DropResult zero = dropSmallComponents(r.extraction.meshes[0], minComponent);
+  DropResult offset = dropSmallComponents(r.extraction.meshes[1], offsetFraction);
+  r.extraction.meshes.clear();
+  r.droppedZero = zero.dropped;
+  r.droppedOffset = offset.dropped;
+  progress.start("shell");
+  ShellOptions so = options;
+  so.minCavityFraction = offsetFraction;
+  if (so.drained()) {
+    const FieldSampler sampler = [&evaluator](const Points& q, Eigen::VectorXd& values) {
+      values = evaluator.evaluate(q).values;
+    };
+    r.shell = drainShell(sampler, r.extraction.grid, zero.mesh, offset.mesh, so, surface.polygonize,
+                         progress.interrupter());
+    warnCoarseHoles(r.shell.report, r.extraction.grid, progress);
+  } else {
+    r.shell = buildShell(zero.mesh, offset.mesh, so);
+  }
+  progress.log(shellSummary(r.shell.report));
+  progress.end();
+  return r;
+}
+
+PipelineResult runDistributedPipeline(const Device& device, Communicator& comm, const std::string& inputPath,
+                                      const PipelineOptions& options, const DistributedOptions& distributed,
+                                      Interrupter* interrupter) {
+  const auto start = Clock::now();
+  const Progress progress(interrupter);
+  const auto unsupported = [&](bool on, const char* what) {
+    if (on) throw InvalidArgument(std::string(what) + " is not supported by the distributed fit yet (run without --distributed)");
+  };
+  unsupported(options.separate, "--separate");
+  unsupported(options.estimateNormals, "--estimate-normals");
+  unsupported(options.denoise, "--denoise");
+  unsupported(options.removeOutliers, "--remove-outliers");
+  unsupported(options.shell, "--shell");
+  unsupported(options.fit.offsetCorrection, "--offset-correction");
+  validateFinishOptions(options.surface.finish);
+  const InputKind kind = options.input == InputKind::Auto ? detectInputKind(inputPath) : options.input;
+  std::string ext = inputPath.size() >= 4 ? inputPath.substr(inputPath.size() - 4) : std::string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+  if (kind == InputKind::Mesh || ext != ".ply") {
+    throw InvalidArgument(inputPath + ": the distributed fit reads PLY clouds (each rank its own rows)");
+  }
+
+  // Each rank reads its own rows: [r·N/P, (r+1)·N/P).
+  progress.start("read");
+  const auto fileRows = static_cast<std::uint64_t>(plyVertexCount(inputPath));
+  const auto p = static_cast<std::uint64_t>(comm.size()), r = static_cast<std::uint64_t>(comm.rank());
+  const std::uint64_t first = fileRows * r / p, last = fileRows * (r + 1) / p;
+  PointCloudFile file = readPlyVertexRows(inputPath, static_cast<std::int64_t>(first), static_cast<std::int64_t>(last - first));
+  const double readSeconds = secondsSince(start);
+  progress.end();
+
+  PipelineResult result;
+  PipelineReport& report = result.report;
+  report.input = inputPath;
+  report.secondsRead = readSeconds;
+  report.read = file.report;
+  report.read.points = static_cast<std::size_t>(fileRows);
+  report.sideTest = options.fit.sideTest;
+  DistributedReport drep;
+  progress.start("partition");
+  const DistributedPoints owned = partitionPoints(comm, file.points, static_cast<std::int64_t>(first), fileRows, drep);
+  file.points = PointSet();
+  report.duplicatesMerged = static_cast<std::size_t>(fileRows) -
+      static_cast<std::size_t>(comm.allreduce(static_cast<std::int64_t>(owned.points.size()), ReduceOp::Sum));
+  progress.log("partition: " + std::to_string(comm.size()) + " ranks, " + std::to_string(fileRows) + " rows, " +
+               (drep.ownedOnce ? "every row owned once" : "ROWS NOT OWNED ONCE"));
+  progress.end();
+  if (!drep.ownedOnce) throw InvalidArgument(inputPath + ": the partition lost or duplicated rows (internal error)");
+
+  progress.start("fit");
+  Points checkPoints;
+  FitResult fitted = fitDistributed(device, comm, owned, options.fit, distributed, drep, &checkPoints, progress.interrupter());
+  report.fit = std::move(fitted.report);
+  report.fit.duplicatesMerged = report.duplicatesMerged;
+  report.distributed = std::move(drep);
+  result.fields.push_back(std::move(fitted.field));
+  progress.end();
+  if (comm.rank() == 0) extractAndFinish(device, result, std::move(fitted.evaluator), checkPoints, options, progress);
+  report.secondsTotal = secondsSince(start);
+  return result;
 }
 
 }  // namespace duplexfit

@@ -57,7 +57,12 @@ void addFitReport(Json& w, const FitReport& rep) {
         {"cg",
          {{"converged", l.solve.converged}, {"stop_reason", stopReasonName(l.solve.reason)},
           {"iterations", l.solve.iterations}, {"relative_residual", l.solve.relativeResidual},
-          {"tolerance", l.solve.tolerance}}},
+          {"tolerance", l.solve.tolerance}, {"max_residual", l.solve.maxResidual},
+          {"absolute_tolerance", l.solve.absoluteTolerance},
+          // Which tolerance the true residual met: the relative one, the absolute one (max |r_i|), or none.
+          {"met", l.solve.converged && l.solve.reason == StopReason::Converged
+                      ? (l.solve.relativeResidual <= l.solve.tolerance ? "relative" : "absolute")
+                      : "none"}}},
         {"seconds",
          {{"constraints", l.secondsConstraints}, {"residual", l.secondsResidual}, {"assembly", l.secondsAssembly},
           {"solve", l.secondsSolve}}}});
@@ -75,6 +80,61 @@ void addFitReport(Json& w, const FitReport& rep) {
 }
 
 Json vec3(const Eigen::Vector3d& v) { return Json::array({v.x(), v.y(), v.z()}); }
+
+/// A mesh's cleaning, simplification and deviation from its level set (finishSurfaces).
+void addFinishReport(Json& m, const MeshFinishReport& f) {
+  const CleanReport& c = f.clean;
+  m["cleaning"] = Json{{"applied", c.facesBefore > 0},
+                       {"faces_before", c.facesBefore},
+                       {"faces_after", c.facesAfter},
+                       {"vertices_before", c.verticesBefore},
+                       {"vertices_after", c.verticesAfter},
+                       {"collapses", c.collapses},
+                       {"flips", c.flips},
+                       {"refused_topology", c.refusedTopology},
+                       {"refused_geometry", c.refusedGeometry},
+                       {"locked_vertices", c.lockedVertices},
+                       {"float32_degenerate_before", c.float32DegenerateBefore},
+                       {"float32_degenerate_after", c.float32DegenerateAfter},
+                       {"slivers_before", c.sliversBefore},
+                       {"slivers_after", c.sliversAfter},
+                       {"min_angle_before", c.minAngleBefore},
+                       {"min_angle_after", c.minAngleAfter},
+                       {"shortest_edge_before", c.shortestEdgeBefore},
+                       {"shortest_edge_after", c.shortestEdgeAfter},
+                       {"seconds", c.seconds}};
+  const SimplifyReport& s = f.simplify;
+  m["simplification"] = Json{{"applied", s.applied},
+                             {"faces_before", s.facesBefore},
+                             {"faces_after", s.facesAfter},
+                             {"target_error", s.targetError},
+                             {"result_error", s.resultError},
+                             {"duplicate_pairs_removed", s.duplicatePairsRemoved},
+                             {"fallback", s.fallback},
+                             {"topology_kept", s.topologyKept},
+                             {"seconds", s.seconds}};
+  Json deviation;  // null when not measured
+  if (f.deviationMeasured) {
+    const LevelSetDeviation& d = f.deviation;
+    deviation = Json{{"candidates", d.candidates},
+                     {"samples", d.samples},
+                     {"flat_samples", d.flatSamples},
+                     {"refined_samples", d.refinedSamples},
+                     {"max", d.max},
+                     {"mean", d.mean},
+                     {"rms", d.rms},
+                     {"p99", d.p99},
+                     {"p999", d.p999},
+                     {"max_at", vec3(d.maxAt)},
+                     {"side", d.side},
+                     {"max_relative", d.relativeMax},
+                     {"p99_relative", d.side > 0.0 ? d.p99 / d.side : 0.0},
+                     {"limit", d.limit},
+                     {"above_limit", d.aboveLimit},
+                     {"seconds", d.seconds}};
+  }
+  m["level_set_deviation"] = std::move(deviation);
+}
 
 Json selfCheckJson(const SelfCheckReport& r, const std::vector<std::string>& meshNames) {
   Json surfaces = Json::array();
@@ -116,7 +176,110 @@ Json selfCheckJson(const SelfCheckReport& r, const std::vector<std::string>& mes
               {"seconds", r.seconds}};
 }
 
+/// The shell's volumes, intersections, validity and drain holes (report.json's "shell" and mesh --shell --json).
+void addShellFigures(Json& j, const ShellReport& r) {
+  Json holes = Json::array();
+  for (const DrainHole& h : r.drainHoles) holes.push_back(Json{{"point", vec3(h.point)}, {"radius", h.radius}});
+  j["volume"] = r.volume;
+  j["zero_volume"] = r.zeroVolume;
+  j["offset_volume"] = r.offsetVolume;
+  j["zero_minus_offset_volume"] = r.zeroMinusOffsetVolume();
+  j["relative_difference"] = r.relativeDifference();
+  j["intersections_checked"] = r.intersectionsChecked;
+  j["intersections_complete"] = r.intersectionsComplete;
+  j["intersecting_pairs"] = r.intersections;
+  j["intersects"] = r.intersects();
+  j["valid"] = r.valid();
+  j["drain_holes"] = std::move(holes);
+}
+
+Json shellJson(const PipelineResult& result, const std::vector<std::string>& meshNames, const std::string& format) {
+  if (!result.shell) return Json();  // null: no shell asked for
+  const PipelineShell& s = *result.shell;
+  const ShellReport& r = s.report;
+  Json j{{"file", pipelineShellName(format)},
+         {"offset", r.offset},
+         {"inner_surface", meshNames[s.surface]},
+         {"note", s.note},
+         {"faces", r.topology.faces},
+         {"watertight", r.topology.watertight()},
+         {"manifold", r.topology.manifold()},
+         {"oriented", r.topology.oriented()},
+         {"topology", topologyJson(r.topology)}};
+  addShellFigures(j, r);
+  j["dropped_cavities"] = r.droppedCavities;
+  j["seconds"] = r.seconds;
+  return j;
+}
+
+Json droppedJson(const DroppedComponents& d) {
+  return Json{{"components", d.components}, {"faces", d.faces}, {"area", d.area}, {"area_fraction", d.areaFraction}};
+}
+
+Json gridJson(const SurfaceResult& e) {
+  return Json{{"cells", Json::array({e.grid.cells.x(), e.grid.cells.y(), e.grid.cells.z()})},
+              {"cell", e.grid.cellSize().maxCoeff()},
+              {"evaluated_fraction", e.stats.evaluatedFraction()},
+              {"sampler_seconds", e.stats.samplingSeconds},
+              {"extraction_seconds", e.stats.extractionSeconds}};
+}
+
+/// A mesh input's checks and sampling (null for a cloud).
+Json inputMeshJson(const PipelineReport& report) {
+  if (!report.mesh) return Json();
+  const MeshSampleReport& m = *report.mesh;
+  const MeshTopology& t = m.topology;
+  return Json{{"format", meshFormatName(report.meshFormat)},
+              {"vertices", t.vertices},
+              {"faces", t.faces},
+              {"area", m.area},
+              {"largest_side", m.largestSide},
+              {"components", t.components},
+              {"watertight", t.watertight()},
+              {"manifold", t.manifold()},
+              {"oriented", t.oriented()},
+              {"boundary_edges", t.boundaryEdges},
+              {"non_manifold_edges", t.nonManifoldEdges},
+              {"non_manifold_vertices", t.nonManifoldVertices},
+              {"inconsistent_edges", t.inconsistentEdges},
+              {"degenerate_faces", m.degenerateFaces},
+              {"first_boundary_face", m.firstBoundaryFace},
+              {"first_non_manifold_face", m.firstNonManifoldFace},
+              {"first_inconsistent_faces", {m.firstInconsistentFaces[0], m.firstInconsistentFaces[1]}},
+              {"orientation", meshOrientationName(m.orientation)},
+              {"reoriented_faces", m.reorientedFaces},
+              {"inconsistent_after", m.inconsistentAfter},
+              {"signed_volume", m.signedVolume},
+              {"flipped", m.flipped},
+              {"density_rule", m.densityRule},
+              {"requested_spacing", m.requestedSpacing},
+              {"clamped", m.clamped},
+              {"samples", m.samples},
+              {"spacing", m.spacing},
+              {"warnings", m.warnings},
+              {"seconds", m.seconds}};
+}
+
 }  // namespace
+
+void writeMeshPipelineJson(std::ostream& out, const MeshPipelineResult& result, const std::string& outputPath,
+                           double iso) {
+  Json m{{"file", outputPath}, {"iso", iso}, {"topology", topologyJson(result.topology)},
+         {"dropped", droppedJson(result.dropped)}, {"grid", gridJson(result.extraction)}};
+  addFinishReport(m, result.finish);
+  out << m.dump(2) << "\n";
+}
+
+void writeShellPipelineJson(std::ostream& out, const ShellPipelineResult& result, const std::string& outputPath) {
+  const ShellReport& r = result.shell.report;
+  Json m{{"file", outputPath}, {"offset", r.offset}, {"note", result.note}, {"topology", topologyJson(r.topology)}};
+  addShellFigures(m, r);
+  m["dropped_zero"] = droppedJson(result.droppedZero);
+  m["dropped_offset"] = droppedJson(result.droppedOffset);
+  m["grid"] = gridJson(result.extraction);
+  m["seconds"] = r.seconds;
+  out << m.dump(2) << "\n";
+}
 
 void writePipelineReport(std::ostream& out, const PipelineResult& result, const std::string& meshFormat,
                          double writeSeconds) {
@@ -127,6 +290,7 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
   const std::vector<std::string> fieldNames = pipelineFieldNames(result);
   Json w;
   w["input"] = report.input;
+  w["input_mesh"] = inputMeshJson(report);
   w["points"] = report.read.points;
   w["duplicates_merged"] = report.duplicatesMerged;
   w["mode"] = separate ? "separate" : "duplex";
@@ -146,6 +310,57 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
                    {"non_planar", n.nonPlanar},
                    {"seconds", n.seconds}};
   }
+  Json distributed;  // null unless the fit was distributed
+  if (report.distributed) {
+    const DistributedReport& d = *report.distributed;
+    Json ranks = Json::array();
+    for (const DistributedRankReport& r : d.rankReports) {
+      Json levels = Json::array();
+      std::size_t halo = 0, unknowns = 0, nonZeros = 0;
+      int iterations = 0;
+      for (const DistributedLevelReport& l : r.levels) {
+        levels.push_back(Json{{"level", l.level},
+                              {"gathered", l.gathered},
+                              {"level_points", l.levelPoints},
+                              {"halo_points", l.haloPoints},
+                              {"unknowns", l.unknowns},
+                              {"ghosts", l.ghosts},
+                              {"owned_centres", l.ownedCentres},
+                              {"non_zeros", l.nonZeros},
+                              {"cg_iterations", l.iterations},
+                              {"bytes_received", l.bytes},
+                              {"seconds", l.seconds},
+                              {"seconds_solve", l.secondsSolve}});
+        halo = std::max(halo, l.haloPoints);
+        unknowns += l.unknowns;
+        nonZeros += l.nonZeros;
+        iterations += l.iterations;
+      }
+      ranks.push_back(Json{{"rank", r.rank},
+                           {"read_rows", r.readRows},
+                           {"points", r.points},
+                           {"halo_points", halo},
+                           {"unknowns", unknowns},
+                           {"non_zeros", nonZeros},
+                           {"cg_iterations", iterations},
+                           {"bytes_received", r.bytesReceived},
+                           {"seconds_partition", r.secondsPartition},
+                           {"seconds_fit", r.secondsFit},
+                           {"levels", levels}});
+    }
+    distributed = Json{{"mode", distributedModeName(d.mode)},
+                       {"halo", d.halo},
+                       {"ranks", d.ranks},
+                       {"communicator", d.communicator},
+                       {"coarse_points", d.coarsePoints},
+                       {"file_rows", d.fileRows},
+                       {"owned_rows", d.ownedRows},
+                       {"owned_once", d.ownedOnce},
+                       {"sigma0_approximate", d.sigma0Approximate},
+                       {"winding_proxy_points", d.windingProxyPoints},
+                       {"per_rank", ranks}};
+  }
+  w["distributed"] = distributed;
   Json denoise;
   if (report.denoise) {
     const BilateralReport& b = *report.denoise;
@@ -162,7 +377,34 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
                    {"mean_displacement", b.meanDisplacement},
                    {"seconds", b.seconds}};
   }
-  w["preprocessing"] = Json{{"normals", std::move(normals)}, {"denoise", std::move(denoise)}};
+  const OutlierReport& o = report.outliers;
+  Json outliers{{"method", "beyond the box of the bulk (per-axis quantiles) by more than margin x its size, or "
+                          "k-th neighbour distance above isolation_factor x the cloud's median"},
+                {"quantile", o.quantile},
+                {"margin", o.margin},
+                {"neighbours", o.neighbours},
+                {"isolation_factor", o.isolationFactor},
+                {"median_neighbour_distance", o.medianNeighbourDistance},
+                {"count", o.indices.size()},
+                {"outside_box", o.outsideBox},
+                {"isolated", o.isolated},
+                {"removed", report.outliersRemoved},
+                {"bulk_min", {o.bulkMin.x(), o.bulkMin.y(), o.bulkMin.z()}},
+                {"bulk_max", {o.bulkMax.x(), o.bulkMax.y(), o.bulkMax.z()}}};
+  if (!o.indices.empty()) {
+    if (o.outsideBox > 0) {
+      outliers["worst_point"] = o.worst;
+      outliers["worst_distance"] = o.worstDistance;
+    }
+    if (o.isolated > 0) {
+      outliers["most_isolated_point"] = o.mostIsolated;
+      outliers["worst_isolation"] = o.worstIsolation;
+    }
+    Json first = Json::array();
+    for (std::size_t i = 0; i < std::min<std::size_t>(o.indices.size(), 20); ++i) first.push_back(o.indices[i]);
+    outliers["first_points"] = std::move(first);
+  }
+  w["preprocessing"] = Json{{"normals", std::move(normals)}, {"denoise", std::move(denoise)}, {"outliers", std::move(outliers)}};
   if (!separate) {
     addFitReport(w, rep);
   } else {
@@ -184,13 +426,16 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
   Json meshes = Json::array();
   for (std::size_t i = 0; i < result.surfaces.size(); ++i) {
     const PipelineSurface& s = result.surfaces[i];
-    meshes.push_back(Json{{"file", meshNames[i]},
-                          {"iso", s.iso},
-                          {"field", fieldNames[s.field]},
-                          {"topology", topologyJson(s.topology)}});
+    Json m{{"file", meshNames[i]},
+           {"iso", s.iso},
+           {"field", fieldNames[s.field]},
+           {"topology", topologyJson(s.topology)}};
+    addFinishReport(m, s.finish);
+    meshes.push_back(std::move(m));
   }
   w["meshes"] = std::move(meshes);
   w["self_check"] = selfCheckJson(report.selfCheck, meshNames);
+  w["shell"] = shellJson(result, meshNames, meshFormat);
   w["grid"] = Json{{"nx", report.grid.cells.x()},
                    {"ny", report.grid.cells.y()},
                    {"nz", report.grid.cells.z()},
@@ -205,6 +450,7 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
                       {"hierarchy", rep.secondsHierarchy},
                       {"fit", rep.secondsTotal},
                       {"polygonize", report.secondsPolygonize},
+                      {"finish", report.secondsFinish},
                       {"write", writeSeconds},
                       {"total", report.secondsTotal + writeSeconds}};
   rusage usage{};

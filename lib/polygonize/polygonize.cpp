@@ -3,6 +3,7 @@
 #include "duplexfit/polygonize.hpp"
 #include "duplexfit/timer.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <sstream>
@@ -114,9 +115,51 @@ Eigen::Vector3d GridSpec::node(int i, int j, int k) const {
   return p;
 }
 
+PolygonizeEstimate estimatePolygonize(const GridSpec& grid, std::size_t isoCount, const PolygonizeOptions& options) {
+  PolygonizeEstimate e;
+  const double tile = options.coarseStep;
+  const double tile3 = tile * tile * tile;
+  double cells[3], tiles[3], coarse[3];
+  e.nodes = 1.0;
+  double tileCount = 1.0, coarseNodes = 1.0;
+  for (int a = 0; a < 3; ++a) {
+    cells[a] = std::max(1, grid.cells(a));
+    e.nodes *= cells[a] + 1.0;
+    tiles[a] = std::floor(cells[a] / tile) + 1.0;  // as NodeStore
+    coarse[a] = std::ceil(cells[a] / tile) + 1.0;
+    tileCount *= tiles[a];
+    coarseNodes *= coarse[a];
+  }
+  const double levels = static_cast<double>(std::max<std::size_t>(1, isoCount));
+  double storedTiles = tileCount;
+  if (options.adaptive) {
+    const double boxTiles = 2.0 * (tiles[0] * tiles[1] + tiles[1] * tiles[2] + tiles[0] * tiles[2]);
+    storedTiles = std::min(tileCount, 2.0 * levels * boxTiles);
+  }
+  e.storedNodes = storedTiles * tile3;
+  // Two pointers per tile (values, marks), the coarse lattice, the tiles' floats and their cell-mark bits.
+  e.storeBytes = 16.0 * tileCount + (options.adaptive ? 4.0 * coarseNodes : 0.0) + storedTiles * tile3 * (4.0 + 1.0 / 8.0);
+  const double boxCells = 2.0 * (cells[0] * cells[1] + cells[1] * cells[2] + cells[0] * cells[2]);
+  e.triangles = 4.0 * levels * boxCells;
+  // A triangle: 12 bytes of indices and half a vertex of 24 bytes in the mesh, as much again in the
+  // per-thread pieces, and the edge-to-vertex welding map.
+  e.meshBytes = 64.0 * e.triangles;
+  return e;
+}
+
+void checkPolygonizeMemory(const GridSpec& grid, std::size_t isoCount, const PolygonizeOptions& options) {
+  const PolygonizeEstimate e = estimatePolygonize(grid, isoCount, options);
+  std::ostringstream what;
+  what.precision(3);
+  what << "the " << grid.cells(0) << "x" << grid.cells(1) << "x" << grid.cells(2) << " grid (" << e.nodes
+       << " nodes, about " << e.triangles << " triangles) with " << isoCount << " level set"
+       << (isoCount == 1 ? "" : "s");
+  requireMemory(options.limits, "polygonize", e.bytes(), what.str(), "use a larger --cell or a smaller --resolution");
+}
+
 PolygonizeResult polygonize(const FieldSampler& sampler, const GridSpec& grid,
                             const std::vector<double>& isoValues, const PolygonizeOptions& options,
-                            const PolygonizeProgress& progress) {
+                            Interrupter* interrupter) {
   const auto start = std::chrono::steady_clock::now();
   const auto since = [](std::chrono::steady_clock::time_point t) {
     return secondsSince(t);
@@ -130,8 +173,11 @@ PolygonizeResult polygonize(const FieldSampler& sampler, const GridSpec& grid,
       throw InvalidArgument("polygonize: iso value " + std::to_string(q) + " is not finite");
     }
   }
-  const detail::ProgressReport report = [&progress](double fraction) {
-    if (progress && !progress(fraction)) throw Cancelled("polygonize: cancelled");
+  checkPolygonizeMemory(grid, isoValues.size(), options);
+  const detail::ProgressReport report = [interrupter](double fraction) {
+    if (interrupter != nullptr && interrupter->wasInterrupted(static_cast<int>(std::lround(100.0 * fraction)))) {
+      throw Cancelled("polygonize: cancelled");
+    }
   };
 
   PolygonizeResult result;

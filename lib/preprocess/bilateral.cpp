@@ -70,8 +70,8 @@ void neighborCsr(const NeighborIndex& index, const Points& p, double r, std::vec
 
 }  // namespace
 
-PointSet bilateralFilter(const PointSet& points, const BilateralOptions& options, const Device& device,
-                         BilateralReport* report) {
+BilateralResult bilateralFilter(const Device& device, const PointSet& points, const BilateralOptions& options,
+                                Interrupter* interrupter) {
   const auto start = Clock::now();
   checkLength(options.sigmaSpatial, "sigmaSpatial");
   checkLength(options.sigmaRange, "sigmaRange");
@@ -87,6 +87,9 @@ PointSet bilateralFilter(const PointSet& points, const BilateralOptions& options
   device.requirePrecision(options.precision);
   const std::size_t n = points.size();
   if (n < 2) throw InvalidArgument("bilateralFilter: needs at least 2 points, got " + std::to_string(n));
+  // Working copies (positions, shifts, normals, areas), the k-d tree and the neighbour lists' offsets.
+  requireMemory(options.limits, "denoise", 300.0 * static_cast<double>(n), std::to_string(n) + " points",
+                "filter a sparser cloud");
   const Points& in = points.positions();
   const Eigen::AlignedBox3d box = points.bounds();
   const double diag = box.diagonal().norm();
@@ -119,6 +122,9 @@ PointSet bilateralFilter(const PointSet& points, const BilateralOptions& options
   std::vector<std::uint32_t> offsets, nbr;
   std::vector<double> area(n), pos(3 * n);
   for (int pass = 0; pass < options.iterations; ++pass) {
+    if (interrupter != nullptr && interrupter->wasInterrupted(100 * pass / options.iterations)) {
+      throw Cancelled("bilateralFilter: cancelled before pass " + std::to_string(pass + 1));
+    }
     auto t = Clock::now();
     const NeighborIndex index(cur);
     const std::vector<std::uint32_t> count = neighborCounts(index, cur, sigma);
@@ -174,9 +180,8 @@ PointSet bilateralFilter(const PointSet& points, const BilateralOptions& options
     }
     rep.normalsReestimated = true;
   }
-  PointSet result(std::move(out), std::move(normals));
-  rep.seconds = secondsSince(start);
-  if (report != nullptr) *report = rep;
+  BilateralResult result{PointSet(std::move(out), std::move(normals)), rep};
+  result.report.seconds = secondsSince(start);
   return result;
 }
 

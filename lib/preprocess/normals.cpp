@@ -151,9 +151,14 @@ PcaNormals pcaNormals(const Device& device, Precision precision, const Points& p
 
 }  // namespace detail
 
-PointSet estimateNormals(const Points& points, const NormalOptions& options, const Device& device,
-                         NormalReport* report) {
+NormalResult estimateNormals(const Device& device, const Points& points, const NormalOptions& options,
+                             Interrupter* interrupter) {
   const auto start = Clock::now();
+  const auto checkpoint = [interrupter](int percent, const char* before) {
+    if (interrupter != nullptr && interrupter->wasInterrupted(percent)) {
+      throw Cancelled(std::string("estimateNormals: cancelled before ") + before);
+    }
+  };
   if (options.k < 3) throw InvalidArgument("estimateNormals: k must be at least 3, got " + std::to_string(options.k));
   if (options.graphK < 0) {
     throw InvalidArgument("estimateNormals: graphK must be >= 0 (0: k), got " + std::to_string(options.graphK));
@@ -169,6 +174,12 @@ PointSet estimateNormals(const Points& points, const NormalOptions& options, con
   }
   const int k = options.k;
   const int graphK = options.graphK > 0 ? options.graphK : k;
+  // Per point: k + 1 neighbours (index and distance), 2·graphK symmetrised graph edges (two indices and a
+  // weight), the duplicate map, normals and the k-d tree.
+  requireMemory(options.limits, "normals",
+                static_cast<double>(n) * (12.0 * (k + 1) + 32.0 * graphK + 200.0),
+                std::to_string(n) + " points with k = " + std::to_string(k) + " and graph k = " + std::to_string(graphK),
+                "use a smaller --normals-k or --graph-k, or a sparser cloud");
 
   // Exact duplicates: estimate on the distinct points; every copy takes its first occurrence's normal.
   std::vector<std::uint32_t> rep(n);
@@ -229,7 +240,9 @@ PointSet estimateNormals(const Points& points, const NormalOptions& options, con
                           "but have no outward side (allow unoriented output to get them anyway)");
   }
 
+  checkpoint(0, "the neighbour search");
   detail::PcaNormals pca = detail::pcaNormals(device, options.precision, u, k, graphK);
+  checkpoint(50, "the orientation");
   Points& nrm = pca.normals;
   const Points raw = nrm;
 
@@ -453,11 +466,9 @@ PointSet estimateNormals(const Points& points, const NormalOptions& options, con
 
   Points outNormals(static_cast<Eigen::Index>(n), 3);
   for (std::size_t i = 0; i < n; ++i) outNormals.row(static_cast<Eigen::Index>(i)) = nrm.row(rep[i]);
-  PointSet result(points, outNormals);
-
-  if (report != nullptr) {
-    NormalReport& r = *report;
-    r = NormalReport{};
+  NormalResult result{PointSet(points, outNormals), NormalReport{}};
+  {
+    NormalReport& r = result.report;
     r.device = device.info().spec;
     r.precision = options.precision;
     r.points = n;

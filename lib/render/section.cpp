@@ -22,7 +22,7 @@ namespace {
 using Rgb = std::array<std::uint8_t, 3>;
 
 constexpr int kMinSize = 16;
-constexpr int kMaxSize = 16384;
+constexpr int kMaxSize = 8192;  // 64M pixels: 16384 took 2 GB and over 120 s
 /// Pixel centres per evaluation batch (the evaluator's own chunk size).
 constexpr std::size_t kBatchPoints = std::size_t{1} << 20;
 /// At most this many |f| samples feed the robust range (a strided subset of the image).
@@ -282,6 +282,15 @@ SectionResult renderSection(const FieldEvaluator& evaluator, const ImplicitField
     rect = Eigen::AlignedBox2d(centre - half, centre + half);
   }
 
+  {
+    // Per pixel: the float value, the RGB image and the PNG's filtered rows and compression buffers; plus one
+    // batch of queries (24 bytes a point) and their values.
+    const double pixels = static_cast<double>(width) * static_cast<double>(height);
+    const double batch = static_cast<double>(std::min<std::size_t>(kBatchPoints, static_cast<std::size_t>(pixels)));
+    requireMemory(options.limits, "section", 16.0 * pixels + 40.0 * batch,
+                  "the " + std::to_string(width) + " x " + std::to_string(height) + " picture of " + plane.toString(),
+                  "use a smaller --size");
+  }
   SectionResult result;
   result.plane = plane;
   result.rectangle = rect;

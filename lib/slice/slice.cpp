@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <iomanip>
 #include <sstream>
 #include <unordered_map>
 #include <utility>
@@ -249,6 +250,39 @@ void Slicer::Impl::setup(const Eigen::AlignedBox3d& box, const std::vector<doubl
   }
   u = (o.axis + 1) % 3;
   v = (o.axis + 2) % 3;
+  // Bounded work, checked before any sampling: the layer count, the plane samples of one layer, and a
+  // grid that can still see the part.
+  const double span = o.end - o.start;
+  const double step = uniform ? o.layer : o.minLayer;
+  const double layers = span / step;
+  if (layers > static_cast<double>(o.maxLayers)) {
+    throw InvalidArgument("slice: the plan has up to " + num(std::ceil(layers)) + " layers (height range " + num(span) +
+                          " / " + (uniform ? "layer " : "minimum layer ") + num(step) + "), more than maxLayers = " +
+                          std::to_string(o.maxLayers) + "; use a thicker " + (uniform ? "--layer" : "--min-layer or --cusp"));
+  }
+  const double extentU = bounds.sizes()[u], extentV = bounds.sizes()[v];
+  const double samples = (std::floor(extentU / o.grid) + 3.0) * (std::floor(extentV / o.grid) + 3.0);
+  if (samples > static_cast<double>(o.maxPlaneSamples)) {
+    throw InvalidArgument("slice: the grid step " + num(o.grid) + " gives " + num(samples) +
+                          " samples a layer, more than maxPlaneSamples = " + std::to_string(o.maxPlaneSamples) +
+                          "; use a coarser --grid");
+  }
+  if (o.grid > 0.25 * std::max(extentU, extentV)) {
+    throw InvalidArgument("slice: the grid step " + num(o.grid) + " is more than a quarter of the part's extent " +
+                          num(std::max(extentU, extentV)) + ": the contours would miss the part; use a finer --grid");
+  }
+  {
+    // Every layer's loops are kept (and copied once, placed on the plate): per level set, a contour about as
+    // long as the box's perimeter in grid steps, 48 bytes a vertex in all; plus one band of plane samples
+    // (query point, value, previous row) and its vertex table.
+    const double perimeter = 2.0 * (std::floor(extentU / o.grid) + std::floor(extentV / o.grid) + 6.0);
+    const double contours = std::ceil(layers) * static_cast<double>(levels.size()) * perimeter * 48.0;
+    const double band = static_cast<double>(std::min<double>(samples, static_cast<double>(o.batchPoints))) * 64.0;
+    requireMemory(o.limits, "slice", contours + band,
+                  std::string(uniform ? "" : "up to ") + num(std::ceil(layers)) + " layers of " + num(samples) +
+                      " plane samples (grid " + num(o.grid) + ")",
+                  std::string("use a thicker ") + (uniform ? "--layer" : "--min-layer or --cusp") + " or a coarser --grid");
+  }
   options = o;
 }
 
@@ -625,7 +659,7 @@ SliceLayer Slicer::layerAt(double height) const {
   return impl_->layerAt(height, nullptr, nullptr);
 }
 
-SliceResult Slicer::run(const SliceProgressCallback& progress) const {
+SliceResult Slicer::run(Interrupter* interrupter) const {
   const auto t0 = Clock::now();
   const SliceOptions& o = impl_->options;
   SliceResult r;
@@ -655,14 +689,15 @@ SliceResult Slicer::run(const SliceProgressCallback& progress) const {
     const double t = layer.thickness;
     const std::size_t nloops = layer.loops.size();
     r.layers.push_back(std::move(layer));
-    if (progress) {
-      SliceProgress p;
-      p.layer = r.layers.size();
-      p.height = z;
-      p.thickness = t;
-      p.fraction = std::min(1.0, (z + t - o.start) / span);
-      p.loops = nloops;
-      if (!progress(p)) throw Cancelled("slice: cancelled after " + std::to_string(r.layers.size()) + " layers");
+    if (interrupter != nullptr) {
+      const double fraction = std::min(1.0, (z + t - o.start) / span);
+      std::ostringstream line;
+      line << "  layer " << r.layers.size() << "  height " << std::setprecision(6) << z << "  thickness " << t
+           << "  loops " << nloops << "  (" << std::setprecision(3) << 100.0 * fraction << "%)";
+      interrupter->message(line.str());
+      if (interrupter->wasInterrupted(static_cast<int>(std::lround(100.0 * fraction)))) {
+        throw Cancelled("slice: cancelled after " + std::to_string(r.layers.size()) + " layers");
+      }
     }
     z += t;
   }
@@ -671,8 +706,8 @@ SliceResult Slicer::run(const SliceProgressCallback& progress) const {
 }
 
 SliceResult slice(const Device& device, const ImplicitField& field, const SliceOptions& options,
-                  const SliceProgressCallback& progress) {
-  return Slicer(device, field, options).run(progress);
+                  Interrupter* interrupter) {
+  return Slicer(device, field, options).run(interrupter);
 }
 
 }  // namespace duplexfit

@@ -39,11 +39,15 @@ Eigen::AlignedBox2d planeBox(const SliceResult& result) {
           Eigen::Vector2d(result.bounds.max()[u], result.bounds.max()[v]) + m};
 }
 
-void writeCli(const std::string& path, const SliceResult& result, double units) {
+void writeCli(const std::string& path, const SliceResult& result, double units, double resultUnits) {
   if (!(units > 0.0) || !std::isfinite(units)) {
     throw InvalidArgument("CLI units must be a positive number of millimetres, got " + std::to_string(units));
   }
-  const double k = 1.0 / units;
+  if (!(resultUnits > 0.0) || !std::isfinite(resultUnits)) {
+    throw InvalidArgument("CLI: the result's units must be a positive number of millimetres, got " +
+                          std::to_string(resultUnits));
+  }
+  const double k = resultUnits == units ? 1.0 : resultUnits / units;
   const int u = (result.axis + 1) % 3, v = (result.axis + 2) % 3;
   std::string out;
   out += "$$HEADERSTART\n$$ASCII\n$$UNITS/";
@@ -62,8 +66,8 @@ void writeCli(const std::string& path, const SliceResult& result, double units) 
   out += "\n$$HEADEREND\n$$GEOMETRYSTART\n";
   AtomicFile file(path);
   for (const SliceLayer& layer : result.layers) {
-    out += "$$LAYER/";
-    appendFixed(out, layer.height * k);
+    out += "$$LAYER/";  // CLI 2.0: the layer's upper boundary
+    appendFixed(out, (layer.height + layer.thickness) * k);
     out += '\n';
     for (const SliceLoop& loop : layer.loops) {
       const Eigen::Index n = loop.points.rows();
@@ -164,6 +168,7 @@ CliFile readCli(const std::string& path) {
         if (!file.layers.empty() && layer.height < file.layers.back().height) {
           throw fail("$$LAYER heights must not decrease");
         }
+        layer.bottom = file.layers.empty() ? 0.0 : file.layers.back().height;
         file.layers.push_back(std::move(layer));
       } else if (cmd == "$$POLYLINE") {
         if (file.layers.empty()) throw fail("$$POLYLINE before the first $$LAYER");
@@ -255,12 +260,17 @@ void writeSliceSvg(const std::string& path, const SliceResult& result, int layer
   file.commit();
 }
 
+Eigen::Vector2d maskPixels(const Eigen::AlignedBox2d& area, double pixel) {
+  const Eigen::Vector2d size = area.sizes() / pixel;
+  return {std::ceil(size.x() - 1e-6), std::ceil(size.y() - 1e-6)};
+}
+
 Image rasterizeLayer(const SliceLayer& layer, const Eigen::AlignedBox2d& area, double pixel) {
   if (!(pixel > 0.0) || !std::isfinite(pixel)) {
     throw InvalidArgument("mask pixel size must be positive, got " + std::to_string(pixel));
   }
-  const Eigen::Vector2d size = area.sizes();
-  const double w = std::ceil(size.x() / pixel), h = std::ceil(size.y() / pixel);
+  const Eigen::Vector2d count = maskPixels(area, pixel);
+  const double w = count.x(), h = count.y();
   if (!(w >= 1.0 && h >= 1.0) || w > 65536.0 || h > 65536.0) {
     throw InvalidArgument("mask pixel size " + std::to_string(pixel) + " gives a " + std::to_string(w) + " x " +
                           std::to_string(h) + " image (1 to 65536 pixels a side)");

@@ -166,7 +166,9 @@ const char* componentIssueName(ComponentIssue::Why why) noexcept {
   return "unknown";
 }
 
-Mesh dropSmallComponents(const Mesh& mesh, double minAreaFraction, DroppedComponents* dropped) {
+namespace {
+
+Mesh withoutSmallComponents(const Mesh& mesh, double minAreaFraction, DroppedComponents* dropped) {
   checkFraction(minAreaFraction);
   if (dropped != nullptr) *dropped = {};
   if (minAreaFraction == 0.0 || mesh.faces.rows() == 0) return mesh;
@@ -189,30 +191,17 @@ Mesh dropSmallComponents(const Mesh& mesh, double minAreaFraction, DroppedCompon
   if (dropped != nullptr) *dropped = d;
   if (d.components == 0) return mesh;
 
-  std::vector<Index> remap(static_cast<std::size_t>(mesh.vertices.rows()), -1);
-  Eigen::Index keptFaces = 0;
-  for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
-    if (!keep[static_cast<std::size_t>(c.labels[static_cast<std::size_t>(f)])]) continue;
-    ++keptFaces;
-    for (int k = 0; k < 3; ++k) remap[static_cast<std::size_t>(mesh.faces(f, k))] = 0;
-  }
-  Index next = 0;
-  for (Index& r : remap) {
-    if (r == 0) r = next++;
-  }
-  Mesh out;
-  out.vertices.resize(next, 3);
-  for (std::size_t v = 0; v < remap.size(); ++v) {
-    if (remap[v] >= 0) out.vertices.row(remap[v]) = mesh.vertices.row(static_cast<Eigen::Index>(v));
-  }
-  out.faces.resize(keptFaces, 3);
-  Eigen::Index row = 0;
-  for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
-    if (!keep[static_cast<std::size_t>(c.labels[static_cast<std::size_t>(f)])]) continue;
-    for (int k = 0; k < 3; ++k) out.faces(row, k) = remap[static_cast<std::size_t>(mesh.faces(f, k))];
-    ++row;
-  }
-  return out;
+  std::vector<char> keepFace(static_cast<std::size_t>(mesh.faces.rows()));
+  for (std::size_t f = 0; f < keepFace.size(); ++f) keepFace[f] = keep[static_cast<std::size_t>(c.labels[f])];
+  return keepFaces(mesh, keepFace);
+}
+
+}  // namespace
+
+DropResult dropSmallComponents(const Mesh& mesh, double minAreaFraction) {
+  DropResult r;
+  r.mesh = withoutSmallComponents(mesh, minAreaFraction, &r.dropped);
+  return r;
 }
 
 SelfCheckReport selfCheck(const std::vector<Mesh>& meshes, const std::vector<double>& isos, const Points& inputPoints,
@@ -332,7 +321,7 @@ SelfCheckReport cleanAndSelfCheck(std::vector<Mesh>& meshes, const std::vector<d
   std::vector<DroppedComponents> dropped(meshes.size());
   for (std::size_t i = 0; i < meshes.size(); ++i) {
     const double fraction = i == 0 ? options.minAreaFraction : std::max(options.minAreaFraction, options.minOffsetAreaFraction);
-    if (fraction > 0.0) meshes[i] = dropSmallComponents(meshes[i], fraction, &dropped[i]);
+    if (fraction > 0.0) meshes[i] = withoutSmallComponents(meshes[i], fraction, &dropped[i]);
   }
   SelfCheckReport r = selfCheck(meshes, isos, inputPoints, options);
   for (std::size_t i = 0; i < r.surfaces.size(); ++i) r.surfaces[i].dropped = dropped[i];

@@ -10,6 +10,7 @@
 #include "cli_runner.hpp"
 #include "duplexfit/field.hpp"
 #include "duplexfit/io.hpp"
+#include "duplexfit/mesh_finish.hpp"
 #include "json_report.hpp"
 #include "shapes.hpp"
 #include "temp_dir.hpp"
@@ -85,6 +86,14 @@ TEST_SUITE("cli") {
     CHECK(jsonAt(report, "/self_check/points_checked") == true);
     CHECK(jsonAt(report, "/self_check/issues") == Json::array());
     CHECK(testing::jsonValuesOf(report, "why").empty());  // no component issue anywhere
+    // Every mesh was cleaned (no float32-degenerate triangle left) and measured against its level set.
+    for (const char* m : {"/meshes/0", "/meshes/1"}) {
+      CAPTURE(m);
+      CHECK(jsonAt(report, std::string(m) + "/cleaning/applied") == true);
+      CHECK(jsonAt(report, std::string(m) + "/cleaning/float32_degenerate_after") == 0);
+      CHECK(jsonAt(report, std::string(m) + "/simplification/applied") == false);
+      CHECK(testing::jsonNumber(report, std::string(m) + "/level_set_deviation/max_relative") < 1e-3);
+    }
 
     const CliRun m = cli("mesh " + (out / "field.dpxf").string() + " --iso 0.05 -o " + (dir / "half.obj").string() + " --quiet");
     CHECK(m.status == 0);
@@ -93,6 +102,21 @@ TEST_SUITE("cli") {
                           " --quiet");
     CHECK(mc.status == 0);
     CHECK(analyzeTopology(readMesh((dir / "min.obj").string())).components == 1);
+    // A triangle budget: meshoptimizer, or a clear error in a build without it.
+    const CliRun small = cli("mesh " + (out / "field.dpxf").string() + " --max-triangles 500 -o " +
+                             (dir / "small.stl").string() + " --quiet");
+    if (simplificationAvailable()) {
+      CHECK(small.status == 0);
+      const MeshTopology st = analyzeTopology(readMesh((dir / "small.stl").string()));
+      CHECK(st.faces <= 500);
+      CHECK(st.watertight());
+      CHECK(st.manifold());
+      const CliRun checked = cli("check " + (dir / "small.stl").string() + " --strict --quiet");
+      CHECK(checked.status == 0);
+    } else {
+      CHECK(small.status == 1);
+      CHECK(small.err.find("meshoptimizer") != std::string::npos);
+    }
 
     // The robust-field mechanisms are counted per level and can be switched off.
     for (const Json& level : levels) {
@@ -115,9 +139,15 @@ TEST_SUITE("cli") {
     CHECK(allZero(plainReport, "off_surface_medial"));
     CHECK_FALSE(allZero(report, "outside"));  // the default fit placed anchors
 
-    const CliRun rel = cli("fit " + input.string() + " --offset 0.1,-0.05 --offset-rel -o " + (dir / "rel").string() + " --quiet --format stl");
+    const CliRun rel = cli("fit " + input.string() + " --offset-rel 0.1,-0.05 -o " + (dir / "rel").string() + " --quiet --format stl");
     CHECK(rel.status == 0);
     CHECK(fs::exists(dir / "rel" / "offset2.stl"));
+    // Written in float32, every mesh still passes the strict check (no collapsed or zero-area triangle).
+    for (const char* f : {"zero.stl", "offset1.stl", "offset2.stl"}) {
+      const CliRun checked = cli("check " + (dir / "rel" / f).string() + " --strict --quiet");
+      CAPTURE(f);
+      CHECK(checked.status == 0);
+    }
   }
 
   TEST_CASE("cli: fit --separate writes one field per surface and a report in separate mode") {
@@ -223,5 +253,94 @@ TEST_SUITE("cli") {
       CHECK_FALSE(fs::exists(mesh));
     }
   }
-}
 
+  TEST_CASE("cli: behaves like a CLI: command list, --help of every command, suggestions, -o, --json") {
+    DUPLEXFIT_REQUIRE_CLI();
+    const std::vector<std::string> commands{"fit", "mesh", "slice", "section", "check", "measure",
+                                            "denoise", "normals", "solve", "devices"};
+    // Bare duplexfit lists every command (usage status 1); --help too (status 0).
+    const CliRun bare = cli("");
+    CHECK(bare.status == 1);
+    const CliRun help = cli("--help");
+    CHECK(help.status == 0);
+    for (const std::string& c : commands) {
+      CAPTURE(c);
+      CHECK(bare.err.find("  " + c + " ") != std::string::npos);
+      CHECK(help.out.find("  " + c + " ") != std::string::npos);
+      // Every command answers --help and -h with its own options, status 0, nothing on stderr.
+      for (const char* flag : {"--help", "-h"}) {
+        const CliRun h = cli(c + " " + flag);
+        CHECK(h.status == 0);
+        CHECK(h.out.find("Usage: " + c) != std::string::npos);
+        CHECK(h.out.find("--help") != std::string::npos);
+        CHECK(h.err.empty());
+      }
+    }
+    const CliRun version = cli("--version");
+    CHECK(version.status == 0);
+    CHECK(version.out.rfind("duplexfit ", 0) == 0);
+    // Typos: the nearest option or command is suggested.
+    const fs::path dir = scratch("behaves");
+    const fs::path input = sphereCloud(dir);
+    const CliRun typo = cli("fit " + input.string() + " --ofset 0.1 -o " + (dir / "typo").string());
+    CHECK(typo.status == 1);
+    CHECK(typo.err.find("unknown option --ofset (did you mean --offset?)") != std::string::npos);
+    CHECK_FALSE(fs::exists(dir / "typo"));
+    const CliRun command = cli("mehs x.dpxf");
+    CHECK(command.status == 1);
+    CHECK(command.err.find("did you mean mesh?") != std::string::npos);
+    const CliRun far = cli("fit " + input.string() + " --completely-unknown 1");
+    CHECK(far.err.find("unknown option --completely-unknown") != std::string::npos);
+    CHECK(far.err.find("did you mean") == std::string::npos);
+    // One spelling: the normal estimation's neighbours are --normals-k in every command.
+    for (const char* c : {"fit", "normals", "denoise"}) {
+      CAPTURE(c);
+      CHECK(cli(std::string(c) + " --help").out.find("--normals-k") != std::string::npos);
+    }
+    // fit -o names a folder: a file-like name is refused before any work, nothing is created.
+    const CliRun file = cli("fit " + input.string() + " --offset 0.1 -o " + (dir / "out.ply").string() + " --quiet");
+    CHECK(file.status == 1);
+    CHECK(file.err.find("looks like a file name") != std::string::npos);
+    CHECK_FALSE(fs::exists(dir / "out.ply"));
+    // --offset-rel takes the fractions; with --offset too it is a usage error.
+    CHECK(cli("fit " + input.string() + " --offset 0.1 --offset-rel 0.1 -o " + (dir / "both").string()).status == 1);
+    CHECK_FALSE(fs::exists(dir / "both"));
+    // fit --json prints report.json exactly as committed.
+    const fs::path out = dir / "json";
+    const CliRun json = cli("fit " + input.string() + " --offset-rel 0.1 -o " + out.string() + " --json --quiet");
+    REQUIRE(json.status == 0);
+    CHECK(json.out == readBytes(out / "report.json"));
+    const Json report = testing::parseJson(json.out);
+    REQUIRE(jsonAt(report, "/offsets").size() == 1);
+    CHECK(jsonAt(report, "/offsets")[0].get<double>() == doctest::Approx(0.1).epsilon(0.02));  // side ≈ 1
+    // The CG report says which tolerance the true residual met; "converged" only when one was.
+    for (const Json& level : jsonAt(report, "/level_reports")) {
+      const Json& cg = level.at("cg");
+      const std::string met = cg.at("met").get<std::string>();
+      if (cg.at("converged").get<bool>()) {
+        CHECK((met == "relative" || met == "absolute"));
+        if (met == "relative") CHECK(cg.at("relative_residual").get<double>() <= cg.at("tolerance").get<double>());
+        if (met == "absolute") CHECK(cg.at("max_residual").get<double>() <= cg.at("absolute_tolerance").get<double>());
+      } else {
+        CHECK(met == "none");
+      }
+    }
+    // mesh and section create a missing output folder as fit and slice do; a failed run leaves none.
+    const fs::path nested = dir / "new" / "sub" / "zero.ply";
+    const CliRun mesh = cli("mesh " + (out / "field.dpxf").string() + " --iso 0 -o " + nested.string() + " --quiet");
+    CHECK(mesh.status == 0);
+    CHECK(fs::exists(nested));
+    const CliRun meshJson = cli("mesh " + (out / "field.dpxf").string() + " --iso 0 -o " + (dir / "m.ply").string() + " --json --quiet");
+    REQUIRE(meshJson.status == 0);
+    const Json meshReport = testing::parseJson(meshJson.out);
+    CHECK(jsonAt(meshReport, "/topology/watertight").get<bool>());
+    CHECK(jsonAt(meshReport, "/level_set_deviation/samples").get<std::size_t>() > 0);
+    CHECK(jsonAt(meshReport, "/topology/faces").get<std::size_t>() == readMesh((dir / "m.ply").string()).faces.rows());
+    const fs::path picture = dir / "pictures" / "z.png";
+    CHECK(cli("section " + (out / "field.dpxf").string() + " --plane z=0 --size 64 -o " + picture.string() + " --quiet").status == 0);
+    CHECK(fs::exists(picture));
+    const fs::path failed = dir / "never" / "m.ply";
+    CHECK(cli("mesh " + (dir / "missing.dpxf").string() + " -o " + failed.string() + " --quiet").status == 2);
+    CHECK_FALSE(fs::exists(dir / "never"));
+  }
+}

@@ -2,9 +2,11 @@
 // derivatives against finite differences, and the binary file format (round trip and corruption).
 #include <doctest/doctest.h>
 
+#include <cmath>
 #include <functional>
 #include <random>
 #include <sstream>
+#include <vector>
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/field.hpp"
@@ -188,5 +190,26 @@ TEST_SUITE("field") {
     std::istringstream junk("this is not a field file at all");
     CHECK_THROWS_AS(ImplicitField::load(junk, "junk"), IoError);
     CHECK_THROWS_AS(ImplicitField::load(std::string("/nonexistent/dir/x.dxf")), IoError);
+  }
+
+  TEST_CASE("field: a file with a valid checksum but an implausible box or non-finite numbers is rejected") {
+    const ImplicitField f = randomField(7);
+    const auto roundTrip = [](const ImplicitField& g) {
+      std::stringstream buffer;
+      g.save(buffer);
+      std::istringstream in(buffer.str());
+      return ImplicitField::load(in, "odd.dpxf");
+    };
+    const ImplicitField huge(f.normalization(), f.f0(), f.levels(), f.offsets(),
+                             Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-1e300), Eigen::Vector3d::Constant(1e300)));
+    CHECK_THROWS_WITH_AS(roundTrip(huge), doctest::Contains("normalised units"), IoError);
+    const ImplicitField inverted(f.normalization(), f.f0(), f.levels(), f.offsets(),
+                                 Eigen::AlignedBox3d(Eigen::Vector3d::Constant(1.0), Eigen::Vector3d::Constant(-1.0)));
+    CHECK_THROWS_WITH_AS(roundTrip(inverted), doctest::Contains("inverted"), IoError);
+    std::vector<FieldLevel> levels = f.levels();
+    levels[1].weights[0] = std::nan("");
+    const ImplicitField nan(f.normalization(), f.f0(), levels, f.offsets(), f.bounds());
+    CHECK_THROWS_WITH(roundTrip(nan), doctest::Contains("not finite"));  // the reader checks every number
+    CHECK_NOTHROW(roundTrip(f));
   }
 }

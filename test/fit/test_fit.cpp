@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "support/recording_interrupter.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/fit.hpp"
 #include "shapes.hpp"
@@ -185,10 +186,26 @@ TEST_SUITE("fit") {
     std::vector<FitStage> stages;
     FitOptions o;
     o.offsets = {0.1};
-    const FitResult r = fit(Device::reference(), cloud, o, [&](const FitProgress& p) {
-      if (stages.empty() || stages.back() != p.stage) stages.push_back(p.stage);
-      return true;
-    });
+    testing::RecordingInterrupter recorder;
+    const FitResult r = fit(Device::reference(), cloud, o, &recorder);
+    for (const FitEvent& e : recorder.events) {
+      if (stages.empty() || stages.back() != e.stage) stages.push_back(e.stage);
+    }
+    // One poll per event; the percents known within the levels (the fit's work, docs/architecture.md)
+    // never decrease, start near 0 and reach 100 once the last solve converges.
+    CHECK(recorder.percents.size() >= recorder.events.size());
+    for (const FitEvent& e : recorder.events) {
+      if (e.stage == FitStage::Solve && e.iteration > 0) CHECK(e.level >= 1);  // the solver's events carry the level
+    }
+    std::vector<int> known;
+    for (const int p : recorder.percents) {
+      if (p >= 0) known.push_back(p);
+    }
+    REQUIRE(known.size() >= 4);
+    CHECK(std::is_sorted(known.begin(), known.end()));
+    CHECK(known.front() <= 5);
+    CHECK(known.back() == 100);
+    CHECK(known.back() <= 100);
     // Hierarchy first, then per level constraints → residual (from level 2) → assembly → solve, errors last.
     REQUIRE(stages.size() >= 4);
     CHECK(stages.front() == FitStage::Hierarchy);
@@ -198,8 +215,14 @@ TEST_SUITE("fit") {
     CHECK(std::find(stages.begin(), stages.end(), FitStage::Solve) != stages.end());
     CHECK(std::string(fitStageName(FitStage::Solve)) == "solve");
     CHECK(std::string(offSurfaceSideName(r.report.offSurfaceSide)) == "outside");
-    CHECK_THROWS_AS(
-        fit(Device::reference(), cloud, o, [](const FitProgress& p) { return p.stage != FitStage::Assembly; }),
-        Cancelled);
+    testing::RecordingInterrupter canceller;
+    canceller.stopWhen = [](const testing::RecordingInterrupter& i) { return i.events.back().stage == FitStage::Assembly; };
+    CHECK_THROWS_AS(fit(Device::reference(), cloud, o, &canceller), Cancelled);
+    // A cancellation inside a CG solve stops the fit too.
+    testing::RecordingInterrupter inSolve;
+    FitOptions often = o;
+    often.solver.progressInterval = 1;
+    inSolve.stopWhen = [](const testing::RecordingInterrupter& i) { return i.events.back().iteration >= 2; };
+    CHECK_THROWS_WITH_AS(fit(Device::reference(), cloud, often, &inSolve), doctest::Contains("solve"), Cancelled);
   }
 }

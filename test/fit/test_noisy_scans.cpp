@@ -54,7 +54,7 @@ TEST_SUITE("preprocess") {
       const Mesh truth = readMesh(data + "/meshes/" + name + ".ply");
 
       const Fitted raw = fitAndMesh(d, noisy, 0.0, delta);
-      const PointSet filtered = bilateralFilter(noisy, BilateralOptions{}, d);
+      const PointSet filtered = bilateralFilter(d, noisy, BilateralOptions{}).points;
       const Fitted den = fitAndMesh(d, filtered, 0.2, delta);
 
       MeasureOptions mo;

@@ -156,7 +156,7 @@ TEST_SUITE("fit") {
 #endif
       PointSet cloud = readPointCloud(dir + "/clouds/thin_torus_20k" + (noisy ? "_noise0.5pct" : "") + ".ply");
       cloud.mergeDuplicates();
-      if (noisy) cloud = bilateralFilter(cloud, BilateralOptions{}, robustDevice());
+      if (noisy) cloud = bilateralFilter(robustDevice(), cloud, BilateralOptions{}).points;
       for (const double delta : {0.02, -0.02}) {
         CAPTURE(noisy);
         CAPTURE(delta);

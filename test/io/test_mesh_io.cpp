@@ -413,3 +413,23 @@ TEST_CASE("mesh io: an OBJ polygon of 349k corners fans into linear memory") {
 }
 
 }  // TEST_SUITE
+
+TEST_CASE("mesh io: a part far from the origin is written in double PLY (float32 would merge its vertices)") {
+  TempDir dir;
+  Mesh m;
+  m.vertices.resize(4, 3);
+  m.vertices << 1e8, 1e8, 1e8, 1e8 + 0.5, 1e8, 1e8, 1e8, 1e8 + 0.5, 1e8, 1e8, 1e8, 1e8 + 0.5;
+  m.faces.resize(4, 3);
+  m.faces << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3;
+  const std::string ply = (dir.path() / "far.ply").string();
+  writeMesh(ply, m);
+  CHECK(readBytes(ply).find("property double x") != std::string::npos);
+  const Mesh back = readMesh(ply);
+  CHECK((back.vertices - m.vertices).cwiseAbs().maxCoeff() == 0.0);
+  CHECK_THROWS_WITH_AS(writeMesh((dir.path() / "far.stl").string(), m), doctest::Contains("float32 steps of 8"),
+                       InvalidArgument);
+  // Near the origin the same part stays float32.
+  m.vertices.array() -= 1e8;
+  writeMesh(ply, m);
+  CHECK(readBytes(ply).find("property float x") != std::string::npos);
+}

@@ -211,6 +211,39 @@ TEST_CASE("point io: CRLF header lines and blank lines in an ascii body are acce
   CHECK(cloud.positions()(2, 1) == 1.0);
 }
 
+TEST_CASE("point io: readPlyVertexRows reads a row range of a binary PLY, the rows of the whole read") {
+  TempDir dir;
+  const int n = 20000;  // larger than the reader's buffer, so the skip seeks
+  Points p(n, 3), q(n, 3);
+  for (int i = 0; i < n; ++i) {
+    p.row(i) << 0.001 * i, std::sin(0.01 * i), -0.5 + 1e-4 * i;
+    q.row(i) << 1.0, 0.5 * (i % 3), -1.0;
+  }
+  const std::string path = dir.file("rows.ply");
+  duplexfit::writePointCloud(path, PointSet(p, q));
+  CHECK(duplexfit::plyVertexCount(path) == n);
+  const PointSet whole = duplexfit::readPointCloud(path);
+  for (const auto& [first, count] : std::vector<std::pair<int, int>>{{0, 7}, {13, 1000}, {15000, 5000}, {n, 0}, {9999, 1}}) {
+    const duplexfit::PointCloudFile part = duplexfit::readPlyVertexRows(path, first, count);
+    REQUIRE(part.points.size() == static_cast<std::size_t>(count));
+    CHECK(part.report.points == static_cast<std::size_t>(count));
+    for (int i = 0; i < count; ++i) {
+      CHECK(part.points.positions().row(i) == whole.positions().row(first + i));
+      CHECK(part.points.normals().row(i) == whole.normals().row(first + i));
+    }
+  }
+  // A range outside the element is an IoError naming the file and the element's size.
+  try {
+    (void)duplexfit::readPlyVertexRows(path, 19990, 11);
+    FAIL("no error");
+  } catch (const duplexfit::IoError& e) {
+    const std::string what = e.what();
+    CHECK(what.find("rows.ply") != std::string::npos);
+    CHECK(what.find("the vertex element has 20000 rows") != std::string::npos);
+  }
+  CHECK_THROWS_AS(duplexfit::readPlyVertexRows(path, 0, -1), duplexfit::InvalidArgument);
+}
+
 TEST_CASE("point io: writePointCloud writes the shared cloud layout and reads back") {
   TempDir dir;
   Points p(5, 3), n(5, 3);

@@ -7,6 +7,7 @@
 #include <limits>
 #include <random>
 
+#include "support/recording_interrupter.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/linalg.hpp"
 #include "duplexfit/wendland.hpp"
@@ -43,12 +44,13 @@ struct Solved {
 };
 
 Solved solveOn(const Device& d, const CsrMatrix& a, const Eigen::VectorXd& b, Precision p,
-               const SolverOptions& options = {}, const Preconditioner* (*make)(const DeviceCsr&) = nullptr) {
+               const SolverOptions& options = {}, const Preconditioner* (*make)(const DeviceCsr&) = nullptr,
+               Interrupter* interrupter = nullptr) {
   const DeviceCsr m = DeviceCsr::upload(d, a, p);
   const DeviceVector db = DeviceVector::upload(d, b, p);
   DeviceVector x(d, b.size() > 0 ? static_cast<std::size_t>(b.size()) : 0, p);
   const Preconditioner* pre = make != nullptr ? make(m) : nullptr;
-  Solved s{solveCg(m, db, x, options, pre), x.download()};
+  Solved s{solveCg(m, db, x, options, pre, interrupter), x.download()};
   delete pre;
   return s;
 }
@@ -226,17 +228,17 @@ TEST_SUITE("linalg") {
     const Eigen::VectorXd b = randomVector(a.rows, 4u);
     SolverOptions options;
     options.progressInterval = 2;
-    int calls = 0;
-    options.progress = [&](int it, double res) {
-      ++calls;
-      CHECK(it % 2 == 0);
-      CHECK(res > 0.0);
-      return it < 6;
-    };
-    const Solved s = solveOn(Device::reference(), a, b, Precision::Double, options);
+    testing::RecordingInterrupter recorder;
+    recorder.stopWhen = [](const testing::RecordingInterrupter& i) { return i.events.back().iteration >= 6; };
+    const Solved s = solveOn(Device::reference(), a, b, Precision::Double, options, nullptr, &recorder);
     CHECK(s.stats.reason == StopReason::Cancelled);
     CHECK(s.stats.iterations == 6);
-    CHECK(calls == 3);
+    REQUIRE(recorder.events.size() == 3);
+    for (std::size_t i = 0; i < recorder.events.size(); ++i) {
+      CHECK(recorder.events[i].stage == FitStage::Solve);
+      CHECK(recorder.events[i].iteration == static_cast<int>(2 * (i + 1)));
+      CHECK(recorder.events[i].residual > 0.0);
+    }
   }
 
   TEST_CASE("cg: a system larger than the max allocation is a clear DeviceError") {

@@ -3,6 +3,7 @@
 // sharing a vertex or an edge, folded, duplicate), and shared data meshes when present.
 #include <doctest/doctest.h>
 
+#include <array>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -29,6 +30,36 @@ Mesh withoutFace(const Mesh& m, Eigen::Index f) {
 }
 
 std::size_t intersections(const Mesh& m) { return checkMesh(m).selfIntersections; }
+
+/// Splits the edge between face 0's first two corners a, b at a + t·(b − a): the two new triangles at a
+/// are needles with an angle of about t·|ab|/|ac| radians; the mesh stays closed and manifold.
+Mesh splitFirstEdge(const Mesh& m, double t) {
+  const std::int32_t a = m.faces(0, 0), b = m.faces(0, 1);
+  Mesh r = m;
+  const auto mid = static_cast<std::int32_t>(m.vertices.rows());
+  r.vertices.conservativeResize(mid + 1, 3);
+  r.vertices.row(mid) = m.vertices.row(a) + t * (m.vertices.row(b) - m.vertices.row(a));
+  std::vector<std::array<std::int32_t, 3>> faces;
+  for (Eigen::Index f = 0; f < m.faces.rows(); ++f) {
+    const std::array<std::int32_t, 3> v = {m.faces(f, 0), m.faces(f, 1), m.faces(f, 2)};
+    bool split = false;
+    for (int k = 0; k < 3 && !split; ++k) {
+      const std::int32_t p = v[static_cast<std::size_t>(k)], q = v[static_cast<std::size_t>((k + 1) % 3)];
+      const std::int32_t o = v[static_cast<std::size_t>((k + 2) % 3)];
+      if ((p == a && q == b) || (p == b && q == a)) {
+        faces.push_back({p, mid, o});
+        faces.push_back({mid, q, o});
+        split = true;
+      }
+    }
+    if (!split) faces.push_back(v);
+  }
+  r.faces.resize(static_cast<Eigen::Index>(faces.size()), 3);
+  for (std::size_t f = 0; f < faces.size(); ++f) {
+    for (int k = 0; k < 3; ++k) r.faces(static_cast<Eigen::Index>(f), k) = faces[f][static_cast<std::size_t>(k)];
+  }
+  return r;
+}
 
 }  // namespace
 
@@ -169,6 +200,56 @@ TEST_CASE("check: shared data meshes match their manifest") {
     CHECK(c.topology.eulerCharacteristic == e.euler);
     CHECK(c.genus == e.genus);
     CHECK(c.selfIntersections == 0);
+  }
+}
+
+TEST_CASE("check: a triangle degenerate in float32 is an error, slivers above the share limit too") {
+  // Away from the origin: no coordinate near 0, where float32 is fine enough to keep 1e-10 apart.
+  const Mesh sphere = icosphere(3, 1.0, Eigen::RowVector3d(2.0, 3.0, 4.0));
+  const MeshCheck clean = checkMesh(sphere);
+  CHECK(clean.quality.float32DegenerateFaces == 0);
+  CHECK(clean.quality.slivers == 0);
+  CHECK(clean.quality.below10 == 0);
+  CHECK(clean.quality.minAngle > 40.0);
+  CHECK(clean.valid());
+  SUBCASE("float32-degenerate: two corners 1e-9 apart, distinct in double, one point in float32") {
+    const Mesh m = splitFirstEdge(sphere, 1e-9);
+    const MeshCheck c = checkMesh(m);
+    CHECK(c.watertight);
+    CHECK(c.manifold);
+    CHECK(c.oriented);
+    CHECK(c.validation.degenerateFaces() == 0);  // fine in double
+    CHECK(c.quality.float32DegenerateFaces == 2);
+    CHECK(c.quality.firstFloat32DegenerateFace >= 0);
+    CHECK(c.quality.below1 >= 2);
+    CHECK_FALSE(c.valid());
+    CHECK(float32Degenerate(m.vertices.row(m.faces(0, 0)), m.vertices.row(m.faces(0, 1)), m.vertices.row(m.faces(0, 2))));
+    // Collinear corners with distinct float32 coordinates are degenerate too.
+    CHECK(float32Degenerate(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 1, 1), Eigen::Vector3d(2, 2, 2)));
+    CHECK_FALSE(float32Degenerate(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1e-3, 0)));
+  }
+  SUBCASE("slivers: two needles of about 0.006 degrees in 1282 triangles") {
+    const Mesh m = splitFirstEdge(sphere, 1e-4);
+    MeshCheck c = checkMesh(m);
+    CHECK(c.quality.float32DegenerateFaces == 0);
+    CHECK(c.quality.slivers == 2);
+    CHECK(c.quality.below1 == 2);
+    CHECK(c.quality.below5 == 2);
+    CHECK(c.quality.minAngle < 0.01);
+    CHECK(c.quality.minAngle > 0.0);
+    CHECK(c.quality.worstFace >= 0);
+    CHECK(c.tooManySlivers);  // 2 > 0.1% of 1282
+    CHECK_FALSE(c.valid());
+    CheckOptions lenient;
+    lenient.maxSliverShare = 0.01;
+    c = checkMesh(m, lenient);
+    CHECK_FALSE(c.tooManySlivers);
+    CHECK(c.valid());
+    CheckOptions tiny;
+    tiny.sliverAngle = 0.001;  // the needles are above it
+    CHECK(checkMesh(m, tiny).quality.slivers == 0);
+    CHECK(minAngleDegrees(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 0)) ==
+          doctest::Approx(45.0));
   }
 }
 

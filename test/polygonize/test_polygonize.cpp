@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "support/recording_interrupter.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/polygonize.hpp"
 #include "polygonize/mesh_checks.hpp"
@@ -534,19 +535,18 @@ TEST_SUITE("polygonize") {
     const PolygonizeResult one = polygonize(f, g, {0.0, 0.1}, o);
     o.threads = 3;
     o.batchSize = 1000;
-    std::vector<double> fractions;
-    const PolygonizeResult many = polygonize(f, g, {0.0, 0.1}, o, [&](double x) {
-      fractions.push_back(x);
-      return true;
-    });
+    duplexfit::testing::RecordingInterrupter recorder;
+    const PolygonizeResult many = polygonize(f, g, {0.0, 0.1}, o, &recorder);
     CHECK(many.stats.samplerCalls > one.stats.samplerCalls);
     for (int q = 0; q < 2; ++q) CHECK(identical(one.meshes[q], many.meshes[q]));
-    REQUIRE(!fractions.empty());
-    CHECK(fractions.back() == 1.0);
-    for (std::size_t i = 1; i < fractions.size(); ++i) CHECK(fractions[i] >= fractions[i - 1]);
-    int calls = 0;
-    CHECK_THROWS_AS(polygonize(f, g, {0.0}, o, [&](double) { return ++calls < 3; }), Cancelled);
-    CHECK(calls == 3);
+    const std::vector<int>& percents = recorder.percents;
+    REQUIRE(!percents.empty());
+    CHECK(percents.back() == 100);
+    for (std::size_t i = 1; i < percents.size(); ++i) CHECK(percents[i] >= percents[i - 1]);
+    duplexfit::testing::RecordingInterrupter canceller;
+    canceller.stopWhen = [](const duplexfit::testing::RecordingInterrupter& i) { return i.percents.size() >= 3; };
+    CHECK_THROWS_AS(polygonize(f, g, {0.0}, o, &canceller), Cancelled);
+    CHECK(canceller.percents.size() == 3);
   }
 
   TEST_CASE("polygonize: adaptive sampling of a sphere at 256³ evaluates under 10% of the nodes") {
@@ -631,5 +631,51 @@ TEST_SUITE("polygonize") {
             << 1.4e-6 * static_cast<double>(res.stats.evaluatedNodes) << " s");
     CHECK(res.stats.continuedCells == 0);
     CHECK(topology(res.meshes[0]).closedManifold());
+  }
+
+  TEST_CASE("estimatePolygonize is within a small factor of the node store and triangles of a sphere; the budget refuses before sampling") {
+    // A sphere filling 80% of the box, as the fit's grids (5% and three cells of margin), and its inward offset.
+    GridSpec grid;
+    grid.box = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-0.5), Eigen::Vector3d::Constant(0.5));
+    grid.cells = Eigen::Vector3i::Constant(160);
+    const std::vector<double> isos{0.0, 0.05};
+    const PolygonizeOptions options;
+    const duplexfit::PolygonizeEstimate e = duplexfit::estimatePolygonize(grid, isos.size(), options);
+    const PolygonizeResult r = polygonize(samplerOf(sphere(Eigen::Vector3d::Zero(), 0.4)), grid, isos, options);
+    double triangles = 0.0;
+    for (const Mesh& m : r.meshes) triangles += static_cast<double>(m.faces.rows());
+    const double storeRatio = e.storeBytes / static_cast<double>(r.stats.storageBytes);
+    const double triangleRatio = e.triangles / triangles;
+    MESSAGE("node store: estimate " << e.storeBytes << " bytes, actual " << r.stats.storageBytes << " (x" << storeRatio
+                                    << "); triangles: estimate " << e.triangles << ", actual " << triangles << " (x"
+                                    << triangleRatio << ")");
+    // An estimate, not a bound: over the sphere's actual use, and by less than a factor of 4.
+    CHECK(storeRatio >= 1.0);
+    CHECK(storeRatio <= 4.0);
+    CHECK(triangleRatio >= 1.0);
+    CHECK(triangleRatio <= 4.0);
+    // Full sampling stores every node.
+    PolygonizeOptions full;
+    full.adaptive = false;
+    CHECK(duplexfit::estimatePolygonize(grid, 1, full).storedNodes >= static_cast<double>(grid.nodeCount()));
+
+    // Over the budget: refused before the sampler is called once.
+    PolygonizeOptions small;
+    small.limits.maxMemoryBytes = std::uint64_t{1} << 20;
+    int calls = 0;
+    const FieldSampler counting = [&calls](const Points& q, Eigen::VectorXd& values) {
+      ++calls;
+      values = Eigen::VectorXd::Zero(q.rows());
+    };
+    try {
+      polygonize(counting, grid, isos, small);
+      FAIL("not refused");
+    } catch (const duplexfit::MemoryLimitExceeded& ex) {
+      const std::string what = ex.what();
+      CHECK(what.find("polygonize: the 160x160x160 grid") != std::string::npos);
+      CHECK(what.find("--max-memory 1 MiB") != std::string::npos);
+      CHECK(what.find("--cell") != std::string::npos);
+    }
+    CHECK(calls == 0);
   }
 }

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "data.hpp"
 #include "duplexfit/error.hpp"
@@ -12,6 +13,7 @@
 #include "duplexfit/fit.hpp"
 #include "duplexfit/preprocess.hpp"
 #include "preprocess/preprocess_test_util.hpp"
+#include "support/recording_interrupter.hpp"
 #include "test_device.hpp"
 
 using namespace duplexfit;
@@ -31,9 +33,12 @@ TEST_CASE("bilateral: device kernel agrees with the reference twin") {
     CAPTURE(n);
     const PointSet noisy = testing::noisySphere(n, 0.5, 0.005);
     BilateralOptions o;
-    BilateralReport rr, rd;
-    const PointSet ref = bilateralFilter(noisy, o, Device::reference(), &rr);
-    const PointSet got = bilateralFilter(noisy, o, dev, &rd);
+    const BilateralResult refResult = bilateralFilter(Device::reference(), noisy, o);
+    const PointSet& ref = refResult.points;
+    const BilateralReport& rr = refResult.report;
+    const BilateralResult gotResult = bilateralFilter(dev, noisy, o);
+    const PointSet& got = gotResult.points;
+    const BilateralReport& rd = gotResult.report;
     CHECK(rd.device == dev.info().spec);
     CHECK(rd.sigmaSpatial == rr.sigmaSpatial);
     CHECK(rd.radius == rr.radius);
@@ -44,8 +49,8 @@ TEST_CASE("bilateral: device kernel agrees with the reference twin") {
     CHECK(maxDifference(got.normals(), noisy.normals()) < 1e-15);
     if (dev.supportsDouble()) {
       o.precision = Precision::Double;
-      const PointSet refD = bilateralFilter(noisy, o, Device::reference());
-      const PointSet gotD = bilateralFilter(noisy, o, dev);
+      const PointSet refD = bilateralFilter(Device::reference(), noisy, o).points;
+      const PointSet gotD = bilateralFilter(dev, noisy, o).points;
       CHECK(maxDifference(refD.positions(), gotD.positions()) <= 1e-12);
       CHECK(maxDifference(refD.positions(), ref.positions()) <= 1e-6);  // float vs double
     }
@@ -56,8 +61,9 @@ TEST_CASE("bilateral: noisy sphere, RMS radial error down, small radial bias") {
   const double radius = 0.5, noise = 0.005;
   const PointSet noisy = testing::noisySphere(20000, radius, noise);
   const testing::RadialError before = testing::radialError(noisy.positions(), radius);
-  BilateralReport rep;
-  const PointSet out = bilateralFilter(noisy, BilateralOptions{}, Device::reference(), &rep);
+  const BilateralResult outResult = bilateralFilter(Device::reference(), noisy, BilateralOptions{});
+  const PointSet& out = outResult.points;
+  const BilateralReport& rep = outResult.report;
   const testing::RadialError after = testing::radialError(out.positions(), radius);
   const double spread = std::sqrt(after.rms * after.rms - after.mean * after.mean);
   MESSAGE("rms " << before.rms << " -> " << after.rms << " (bias " << after.mean << ", spread " << spread
@@ -89,8 +95,9 @@ TEST_CASE("bilateral: noisy sphere, RMS radial error down, small radial bias") {
   // More passes keep smoothing the spread while the outward bias grows.
   BilateralOptions o;
   o.iterations = 2;
-  BilateralReport rep2;
-  const PointSet out2 = bilateralFilter(noisy, o, Device::reference(), &rep2);
+  const BilateralResult out2Result = bilateralFilter(Device::reference(), noisy, o);
+  const PointSet& out2 = out2Result.points;
+  const BilateralReport& rep2 = out2Result.report;
   const testing::RadialError after2 = testing::radialError(out2.positions(), radius);
   CHECK(rep2.iterations == 2);
   CHECK(after2.mean > after.mean);
@@ -106,7 +113,7 @@ TEST_CASE("bilateral: shared noisy fandisk moves toward the clean surface") {
   // The noisy cloud is the clean one plus noise, point for point, with the clean normals: the error along
   // the true normal of the clean point measures the distance to the surface (away from edges).
   const std::vector<char> mask = testing::smoothMask(clean);
-  const PointSet out = bilateralFilter(noisy, BilateralOptions{}, Device::reference());
+  const PointSet out = bilateralFilter(Device::reference(), noisy, BilateralOptions{}).points;
   double before = 0, after = 0;
   std::size_t m = 0;
   for (std::size_t i = 0; i < clean.size(); ++i) {
@@ -134,8 +141,7 @@ TEST_CASE("bilateral: overrides, zero normals and normal re-estimation") {
     o.radius = 0.08;
     o.areaSigma = 0.04;
     o.symmetricRange = true;
-    BilateralReport rep;
-    bilateralFilter(noisy, o, ref, &rep);
+    const BilateralReport rep = bilateralFilter(ref, noisy, o).report;
     CHECK(rep.sigmaSpatial == 0.05);
     CHECK(rep.sigmaRange == 0.02);
     CHECK(rep.radius == 0.08);
@@ -146,24 +152,27 @@ TEST_CASE("bilateral: overrides, zero normals and normal re-estimation") {
   SUBCASE("a tiny radius leaves every point alone") {
     BilateralOptions o;
     o.radius = 1e-6;
-    BilateralReport rep;
-    const PointSet out = bilateralFilter(noisy, o, ref, &rep);
+    const BilateralResult outResult = bilateralFilter(ref, noisy, o);
+    const PointSet& out = outResult.points;
+    const BilateralReport& rep = outResult.report;
     CHECK(rep.isolated == noisy.size());
     CHECK(rep.moved == 0);
     CHECK(out.positions() == noisy.positions());
   }
   SUBCASE("zero normals: every projection is the point itself") {
     const PointSet flat(noisy.positions(), Points::Zero(noisy.positions().rows(), 3));
-    BilateralReport rep;
-    const PointSet out = bilateralFilter(flat, BilateralOptions{}, ref, &rep);
+    const BilateralResult outResult = bilateralFilter(ref, flat, BilateralOptions{});
+    const PointSet& out = outResult.points;
+    const BilateralReport& rep = outResult.report;
     CHECK(maxDifference(out.positions(), flat.positions()) < 1e-12);
     CHECK(rep.moved == 0);
   }
   SUBCASE("re-estimated normals follow the surface and keep the input's sign") {
     BilateralOptions o;
     o.reestimateNormals = true;
-    BilateralReport rep;
-    const PointSet out = bilateralFilter(noisy, o, ref, &rep);
+    const BilateralResult outResult = bilateralFilter(ref, noisy, o);
+    const PointSet& out = outResult.points;
+    const BilateralReport& rep = outResult.report;
     CHECK(rep.normalsReestimated);
     double worst = 0;
     for (Eigen::Index i = 0; i < out.positions().rows(); ++i) {
@@ -180,17 +189,36 @@ TEST_CASE("bilateral: bad input") {
   const PointSet noisy = testing::noisySphere(200, 0.5, 0.005);
   BilateralOptions o;
   o.sigmaSpatial = -1;
-  CHECK_THROWS_AS(bilateralFilter(noisy, o, ref), InvalidArgument);
+  CHECK_THROWS_AS(bilateralFilter(ref, noisy, o).points, InvalidArgument);
   o = {};
   o.radius = std::nan("");
-  CHECK_THROWS_AS(bilateralFilter(noisy, o, ref), InvalidArgument);
+  CHECK_THROWS_AS(bilateralFilter(ref, noisy, o).points, InvalidArgument);
   o = {};
   o.iterations = 0;
-  CHECK_THROWS_WITH_AS(bilateralFilter(noisy, o, ref), doctest::Contains("iterations"), InvalidArgument);
+  CHECK_THROWS_WITH_AS(bilateralFilter(ref, noisy, o).points, doctest::Contains("iterations"), InvalidArgument);
   const PointSet one(Points::Zero(1, 3), Points::Zero(1, 3));
-  CHECK_THROWS_WITH_AS(bilateralFilter(one, {}, ref), doctest::Contains("at least 2 points"), InvalidArgument);
+  CHECK_THROWS_WITH_AS(bilateralFilter(ref, one, {}).points, doctest::Contains("at least 2 points"), InvalidArgument);
   const PointSet same(Points::Ones(5, 3), Points::Zero(5, 3));
-  CHECK_THROWS_WITH_AS(bilateralFilter(same, {}, ref), doctest::Contains("coincide"), InvalidArgument);
+  CHECK_THROWS_WITH_AS(bilateralFilter(ref, same, {}).points, doctest::Contains("coincide"), InvalidArgument);
 }
 
 }  // TEST_SUITE
+
+TEST_CASE("bilateral and normals: the interrupter is polled and cancels") {
+  const PointSet noisy = testing::noisySphere(3000, 0.5, 0.002);
+  BilateralOptions o;
+  o.iterations = 3;
+  testing::RecordingInterrupter recorder;
+  const BilateralResult done = bilateralFilter(Device::reference(), noisy, o, &recorder);
+  CHECK(done.report.iterations == 3);
+  CHECK(recorder.percents == std::vector<int>{0, 33, 66});
+  testing::RecordingInterrupter canceller;
+  canceller.stopWhen = [](const testing::RecordingInterrupter& i) { return i.percents.size() == 2; };
+  CHECK_THROWS_WITH_AS(bilateralFilter(Device::reference(), noisy, o, &canceller), doctest::Contains("pass 2"),
+                       Cancelled);
+  testing::RecordingInterrupter normals;
+  normals.stopWhen = [](const testing::RecordingInterrupter& i) { return i.percents.back() == 50; };
+  CHECK_THROWS_WITH_AS(estimateNormals(Device::reference(), noisy.positions(), NormalOptions{}, &normals),
+                       doctest::Contains("orientation"), Cancelled);
+  CHECK(normals.percents == std::vector<int>{0, 50});
+}

@@ -74,8 +74,9 @@ TEST_CASE("normals: shared clean clouds, PCA accuracy and 100% outward") {
   for (const std::string name : {"sphere_10k", "torus_10k", "bunny_35k", "fandisk_50k"}) {
     CAPTURE(name);
     const PointSet truth = readPointCloud(data + "/clouds/" + name + ".ply");
-    NormalReport rep;
-    const PointSet est = estimateNormals(truth.positions(), NormalOptions{}, ref, &rep);
+    const NormalResult estResult = estimateNormals(ref, truth.positions(), NormalOptions{});
+    const PointSet& est = estResult.points;
+    const NormalReport& rep = estResult.report;
     REQUIRE(est.size() == truth.size());
     CHECK(est.positions() == truth.positions());
     const NormalQuality q = compare(est, truth);
@@ -101,10 +102,14 @@ TEST_CASE("normals: device covariance sums agree with the reference twin") {
     if (p == Precision::Double && !dev.supportsDouble()) continue;
     NormalOptions o;
     o.precision = p;
-    NormalReport rr, rd;
-    const PointSet ref = estimateNormals(noisy.positions(), o, Device::reference(), &rr);
-    const PointSet got = estimateNormals(noisy.positions(), o, dev, &rd);
+    const NormalResult refResult = estimateNormals(Device::reference(), noisy.positions(), o);
+    const PointSet& ref = refResult.points;
+    const NormalReport& rr = refResult.report;
+    const NormalResult gotResult = estimateNormals(dev, noisy.positions(), o);
+    const PointSet& got = gotResult.points;
+    const NormalReport& rd = gotResult.report;
     CHECK(rd.device == dev.info().spec);
+    CHECK(rr.device == Device::reference().info().spec);
     double worst = 0;
     for (Eigen::Index i = 0; i < ref.normals().rows(); ++i) {
       worst = std::max(worst, testing::angleDeg(ref.normals().row(i), got.normals().row(i)));
@@ -130,8 +135,7 @@ TEST_CASE("normals: noisy sphere and two separate spheres are oriented outward")
   const Device ref = Device::reference();
   SUBCASE("noise of 0.5% of the radius") {
     const PointSet noisy = testing::noisySphere(8000, 0.5, 0.0025);
-    NormalReport rep;
-    const PointSet est = estimateNormals(noisy.positions(), NormalOptions{}, ref, &rep);
+    const PointSet est = estimateNormals(ref, noisy.positions(), NormalOptions{}).points;
     double mean = 0;
     std::size_t outward = 0;
     for (Eigen::Index i = 0; i < est.normals().rows(); ++i) {
@@ -156,8 +160,9 @@ TEST_CASE("normals: noisy sphere and two separate spheres are oriented outward")
     const Eigen::Matrix3d r = Eigen::AngleAxisd(2.0, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
     p = (p * r.transpose()).eval();
     truth = (truth * r.transpose()).eval();
-    NormalReport rep;
-    const PointSet est = estimateNormals(p, NormalOptions{}, ref, &rep);
+    const NormalResult estResult = estimateNormals(ref, p, NormalOptions{});
+    const PointSet& est = estResult.points;
+    const NormalReport& rep = estResult.report;
     CHECK(rep.components == 2);
     CHECK(rep.ambiguousComponents == 0);
     CHECK(rep.nestedComponents == 0);
@@ -174,8 +179,9 @@ TEST_CASE("normals: a hollow shell's inner wall faces its cavity") {
   Points p(a.rows() + b.rows(), 3), truth(a.rows() + b.rows(), 3);
   p << a, b;
   truth << n1, -n2;  // the solid is the shell between the spheres: the inner sphere's outward side is inward
-  NormalReport rep;
-  const PointSet est = estimateNormals(p, NormalOptions{}, Device::reference(), &rep);
+  const NormalResult estResult = estimateNormals(Device::reference(), p, NormalOptions{});
+  const PointSet& est = estResult.points;
+  const NormalReport& rep = estResult.report;
   CHECK(rep.components == 2);
   CHECK(rep.nestedComponents == 1);
   std::size_t right = 0;
@@ -188,8 +194,9 @@ TEST_CASE("normals: duplicates share a normal") {
   const Points a = testing::fibonacciSphere(1000, 0.5, &n1);
   Points p(a.rows() + 3, 3);
   p << a, a.row(5), a.row(5), a.row(17);
-  NormalReport rep;
-  const PointSet est = estimateNormals(p, NormalOptions{}, Device::reference(), &rep);
+  const NormalResult estResult = estimateNormals(Device::reference(), p, NormalOptions{});
+  const PointSet& est = estResult.points;
+  const NormalReport& rep = estResult.report;
   CHECK(rep.duplicates == 3);
   CHECK(est.size() == p.rows());
   CHECK(est.normals().row(1000) == est.normals().row(5));
@@ -204,25 +211,25 @@ TEST_CASE("normals: bad input") {
   Points sphere = testing::fibonacciSphere(500, 0.5, &n1);
   SUBCASE("NaN coordinate names the point") {
     sphere(123, 1) = std::numeric_limits<double>::quiet_NaN();
-    checkInvalid([&] { estimateNormals(sphere, NormalOptions{}, ref); }, {"point 123", "non-finite"});
+    checkInvalid([&] { estimateNormals(ref, sphere, NormalOptions{}).points; }, {"point 123", "non-finite"});
   }
   SUBCASE("k too small, k too large, too few points") {
     NormalOptions o;
     o.k = 2;
-    checkInvalid([&] { estimateNormals(sphere, o, ref); }, {"k must be at least 3"});
+    checkInvalid([&] { estimateNormals(ref, sphere, o).points; }, {"k must be at least 3"});
     o.k = 500;
-    checkInvalid([&] { estimateNormals(sphere, o, ref); }, {"k = 500", "at least 501 distinct points", "got 500"});
-    checkInvalid([&] { estimateNormals(sphere.topRows(10), NormalOptions{}, ref); }, {"at least 16", "got 10"});
+    checkInvalid([&] { estimateNormals(ref, sphere, o).points; }, {"k = 500", "at least 501 distinct points", "got 500"});
+    checkInvalid([&] { estimateNormals(ref, sphere.topRows(10), NormalOptions{}).points; }, {"at least 16", "got 10"});
   }
   SUBCASE("duplicates leave too few distinct points") {
     Points p(40, 3);
     for (Eigen::Index i = 0; i < 40; ++i) p.row(i) = sphere.row(i % 8);
-    checkInvalid([&] { estimateNormals(p, NormalOptions{}, ref); }, {"got 8", "32 exact duplicates"});
+    checkInvalid([&] { estimateNormals(ref, p, NormalOptions{}).points; }, {"got 8", "32 exact duplicates"});
   }
   SUBCASE("all points on a line") {
     Points p(100, 3);
     for (Eigen::Index i = 0; i < 100; ++i) p.row(i) = Eigen::RowVector3d(1, 2, 3) * (0.01 * static_cast<double>(i));
-    checkInvalid([&] { estimateNormals(p, NormalOptions{}, ref); }, {"line", "undefined"});
+    checkInvalid([&] { estimateNormals(ref, p, NormalOptions{}).points; }, {"line", "undefined"});
   }
   SUBCASE("all points on a plane: error, or consistent normals on request") {
     Points p(400, 3);
@@ -230,11 +237,12 @@ TEST_CASE("normals: bad input") {
       const double x = 0.05 * static_cast<double>(i % 20), y = 0.05 * static_cast<double>(i / 20);
       p.row(i) = Eigen::RowVector3d(x, y, 0.3 * x - 0.2 * y + 1.0);
     }
-    checkInvalid([&] { estimateNormals(p, NormalOptions{}, ref); }, {"plane", "no outward side"});
+    checkInvalid([&] { estimateNormals(ref, p, NormalOptions{}).points; }, {"plane", "no outward side"});
     NormalOptions o;
     o.requireOutward = false;
-    NormalReport rep;
-    const PointSet est = estimateNormals(p, o, ref, &rep);
+    const NormalResult estResult = estimateNormals(ref, p, o);
+    const PointSet& est = estResult.points;
+    const NormalReport& rep = estResult.report;
     CHECK(rep.ambiguousComponents == 1);
     const Eigen::RowVector3d up = Eigen::RowVector3d(-0.3, 0.2, 1.0).normalized();
     for (Eigen::Index i = 0; i < est.normals().rows(); ++i) CHECK(est.normals().row(i).dot(up) > 0.999);
@@ -242,7 +250,7 @@ TEST_CASE("normals: bad input") {
   SUBCASE("a noisy flat patch has no outward side") {
     Points p = testing::noisySphere(900, 0.5, 0.0).positions();
     for (Eigen::Index i = 0; i < p.rows(); ++i) p(i, 2) = 0.001 * std::sin(37.0 * static_cast<double>(i));
-    checkInvalid([&] { estimateNormals(p, NormalOptions{}, ref); }, {"encloses no volume", "flat or open"});
+    checkInvalid([&] { estimateNormals(ref, p, NormalOptions{}).points; }, {"encloses no volume", "flat or open"});
   }
 }
 

@@ -71,7 +71,7 @@ TEST_CASE("cli: normals of a cloud without normals") {
   const Points x = testing::fibonacciSphere(2000, 0.5, &truth);
   writeXyz(s / "bare.xyz", x);
   const CliRun r = s.cli("normals " + (s / "bare.xyz").string() + " -o " + (s / "n.ply").string() +
-                         " --device ref --k 12 --json --quiet");
+                         " --device ref --normals-k 12 --json --quiet");
   INFO(r.err);
   REQUIRE(r.status == 0);
   const testing::Json j = testing::parseJson(r.out);
@@ -111,7 +111,7 @@ TEST_CASE("cli: preprocess errors leave no output") {
   CHECK(r.status == 1);
   CHECK(r.err.find("plane.xyz") != std::string::npos);
   CHECK(r.err.find("plane") != std::string::npos);
-  r = s.cli("normals " + (s / "bare.xyz").string() + " -o " + out + " --device ref --k 600");
+  r = s.cli("normals " + (s / "bare.xyz").string() + " -o " + out + " --device ref --normals-k 600");
   CHECK(r.status == 1);
   CHECK(r.err.find("at least 601") != std::string::npos);
   r = s.cli("normals " + (s / "missing.xyz").string() + " -o " + out + " --device ref");

@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "support/recording_interrupter.hpp"
 #include "duplexfit/error.hpp"
 #include "slice_fixtures.hpp"
 #include "slice_checks.hpp"
@@ -257,15 +258,17 @@ TEST_SUITE("slice") {
       CHECK((a.loops[i].points - b.loops[i].points).cwiseAbs().maxCoeff() <= 1e-12);
     }
     CHECK(a.thickness == b.thickness);
-    // Progress reports every layer; returning false cancels.
-    std::size_t calls = 0;
-    const SliceResult p = slice(d, fittedUprightTorus(), o, [&](const SliceProgress& s) {
-      ++calls;
-      CHECK(s.layer == calls);
-      return true;
-    });
-    CHECK(calls == p.layers.size());
-    CHECK_THROWS_AS(slice(d, fittedUprightTorus(), o, [](const SliceProgress& s) { return s.layer < 3; }), Cancelled);
+    // Progress: one message line and one poll per layer; interrupting cancels.
+    testing::RecordingInterrupter recorder;
+    const SliceResult p = slice(d, fittedUprightTorus(), o, &recorder);
+    CHECK(recorder.lines.size() == p.layers.size());
+    CHECK(recorder.percents.size() == p.layers.size());
+    REQUIRE(!recorder.lines.empty());
+    CHECK(recorder.lines.front().find("layer 1 ") != std::string::npos);
+    CHECK(recorder.percents.back() == 100);
+    testing::RecordingInterrupter canceller;
+    canceller.stopWhen = [](const testing::RecordingInterrupter& i) { return i.percents.size() >= 3; };
+    CHECK_THROWS_WITH_AS(slice(d, fittedUprightTorus(), o, &canceller), doctest::Contains("after 3 layers"), Cancelled);
     // Refinement puts the vertices on the level set: |f| far below the grid step.
     const SliceLayer l = Slicer(d, fittedUprightTorus(), paperOptions(SliceMode::Zero)).layerAt(0.2);
     Points q(static_cast<Eigen::Index>(l.vertexCount()), 3);
@@ -313,5 +316,25 @@ TEST_SUITE("slice") {
     CHECK_THROWS_AS(parseAxis("w"), InvalidArgument);
     CHECK(parseAxis("y") == 1);
     CHECK_THROWS_AS(parseSliceMode("solid"), InvalidArgument);
+  }
+
+  TEST_CASE("slice: plans with too many layers, too many plane samples or a grid coarser than the part are refused") {
+    const Device d = Device::reference();
+    SliceOptions o = paperOptions(SliceMode::Zero);
+    o.cusp = 1e-12;
+    o.minLayer = 0.0;
+    CHECK_THROWS_WITH_AS(Slicer(d, fittedUprightTorus(), o), doctest::Contains("maxLayers"), InvalidArgument);
+    o = paperOptions(SliceMode::Zero);
+    o.cusp = 0.0;
+    o.layer = 1e-12;
+    CHECK_THROWS_WITH_AS(Slicer(d, fittedUprightTorus(), o), doctest::Contains("--layer"), InvalidArgument);
+    o = paperOptions(SliceMode::Zero);
+    o.grid = 1e-9;
+    CHECK_THROWS_WITH_AS(Slicer(d, fittedUprightTorus(), o), doctest::Contains("maxPlaneSamples"), InvalidArgument);
+    o.grid = 1e9;
+    CHECK_THROWS_WITH_AS(Slicer(d, fittedUprightTorus(), o), doctest::Contains("quarter of the part"), InvalidArgument);
+    o.grid = 0.0;
+    o.maxLayers = 3;  // the paper's plan has dozens
+    CHECK_THROWS_AS(Slicer(d, fittedUprightTorus(), o), InvalidArgument);
   }
 }

@@ -26,13 +26,15 @@ std::string readText(const fs::path& p) { return testing::readFile(p); }
 
 void writeText(const fs::path& p, const std::string& text) { REQUIRE(testing::writeFile(p, text)); }
 
-// The result's loops and the CLI file's polylines agree (heights, orientation flags, points).
+// The result's loops and the CLI file's polylines agree (heights, orientation flags, points). $$LAYER is
+// the layer's top (CLI 2.0), and the reader's bottom is the previous layer's top.
 void expectSameLoops(const SliceResult& r, const CliFile& f, double tol) {
   REQUIRE(f.layers.size() == r.layers.size());
   for (std::size_t i = 0; i < r.layers.size(); ++i) {
     CAPTURE(i);
     const SliceLayer& l = r.layers[i];
-    CHECK(std::abs(f.layers[i].height - l.height) <= tol);
+    CHECK(std::abs(f.layers[i].height - (l.height + l.thickness)) <= tol);
+    if (i > 0) CHECK(f.layers[i].bottom == f.layers[i - 1].height);
     REQUIRE(f.layers[i].polylines.size() == l.loops.size());
     for (std::size_t k = 0; k < l.loops.size(); ++k) {
       const CliPolyline& p = f.layers[i].polylines[k];
@@ -95,6 +97,8 @@ TEST_SUITE("slice") {
     const CliFile ok = readCli((dir / "ok.cli").string());
     REQUIRE(ok.layers.size() == 1);
     CHECK(ok.layers[0].height == 2.0);
+    CHECK(ok.layers[0].bottom == 0.0);  // the first layer starts on the plate
+    CHECK(ok.layers[0].thickness() == 2.0);
     CHECK_FALSE(ok.layers[0].polylines[0].closed);
     CHECK(ok.layers[0].polylines[0].id == 7);
     CHECK(ok.layers[0].polylines[0].points(1, 0) == 2.0);
@@ -165,10 +169,14 @@ TEST_SUITE("slice") {
     for (const char* name : {"slices.cli", "slices.svg", "slices.json", "masks/layer_00001.png"}) {
       CHECK_MESSAGE(fs::exists(out / name), name);
     }
-    // The file holds exactly what the library computes with the same options and device.
+    // The file holds exactly what the library computes with the same options and device, placed on the
+    // plate by default (the plate a whole number of mask pixels).
     const SliceResult& r = fittedSlice(SliceMode::Shell, 2);
+    PlacementOptions place;
+    place.plateStep = 0.01;
+    const SliceResult placed = applyPlacement(r, placeSlices(r, place));
     const CliFile f = readCli((out / "slices.cli").string());
-    expectSameLoops(r, f, 1e-6);
+    expectSameLoops(placed, f, 1e-6);
     std::size_t masks = 0;
     for (const auto& e : fs::directory_iterator(out / "masks")) masks += e.path().extension() == ".png" ? 1 : 0;
     CHECK(masks == r.layers.size());

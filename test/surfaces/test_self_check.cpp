@@ -158,8 +158,9 @@ TEST_CASE("dropSmallComponents: removes the small component, compacts the vertic
   const Mesh small = icosphere(1, 0.1, Eigen::RowVector3d(3.0, 0.0, 0.0));
   const Mesh both = merged(small, big);  // the small one first, so vertex and face indices shift
   const double total = surfaceArea(both);
-  DroppedComponents d;
-  const Mesh kept = dropSmallComponents(both, 0.05, &d);
+  const DropResult result = dropSmallComponents(both, 0.05);
+  const DroppedComponents& d = result.dropped;
+  const Mesh& kept = result.mesh;
   CHECK(d.components == 1);
   CHECK(d.faces == static_cast<std::size_t>(small.faces.rows()));
   CHECK(d.vertices == static_cast<std::size_t>(small.vertices.rows()));
@@ -175,12 +176,14 @@ TEST_CASE("dropSmallComponents: removes the small component, compacts the vertic
   CHECK(t.watertight());
 
   // 0 drops nothing; a fraction above every component's share still keeps the largest.
-  DroppedComponents none;
-  CHECK(dropSmallComponents(both, 0.0, &none).faces.rows() == both.faces.rows());
+  const DropResult noneResult = dropSmallComponents(both, 0.0);
+  const DroppedComponents& none = noneResult.dropped;
+  CHECK(noneResult.mesh.faces.rows() == both.faces.rows());
   CHECK(none.components == 0);
   const Mesh twins = merged(icosphere(2, 1.0), icosphere(2, 1.0, Eigen::RowVector3d(5.0, 0.0, 0.0)));
-  DroppedComponents half;
-  CHECK(analyzeTopology(dropSmallComponents(twins, 0.9, &half)).components == 1);
+  const DropResult halfResult = dropSmallComponents(twins, 0.9);
+  const DroppedComponents& half = halfResult.dropped;
+  CHECK(analyzeTopology(halfResult.mesh).components == 1);
   CHECK(half.components == 1);
   CHECK(half.areaFraction == doctest::Approx(0.5));
   CHECK_THROWS_AS(dropSmallComponents(both, 1.0), InvalidArgument);

@@ -1,0 +1,187 @@
+// What the pipelines do with a level set's mesh after extraction (docs/method.md §7): cleaning (edge
+// collapses of short edges and edge flips of caps, keeping the mesh 2-manifold and watertight, so that no
+// triangle is degenerate once written in float32), optional simplification to a triangle budget or an
+// error bound (meshoptimizer, when the build has it), and the mesh's deviation from the field's level set.
+#pragma once
+
+#include <cstddef>
+#include <functional>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "duplexfit/field.hpp"
+#include "duplexfit/interrupter.hpp"
+#include "duplexfit/mesh.hpp"
+#include "duplexfit/types.hpp"
+
+namespace duplexfit {
+
+// ---------------------------------------------------------------------------------------------
+// Cleaning
+
+struct CleanOptions {
+  /// Edges shorter than this (input units) are collapsed; 0: only edges whose ends coincide in float32.
+  double collapseLength = 0.0;
+  /// Flip the longest edge of a cap (a triangle with an angle above capAngle degrees) when the flip raises
+  /// the smallest angle of the two triangles and the quad is nearly flat (normals within flipNormalAngle).
+  bool flips = true;
+  double capAngle = 150.0;
+  double flipNormalAngle = 20.0;
+  /// A collapse is refused when a surviving triangle's normal would turn by more than this many degrees.
+  double maxNormalChange = 60.0;
+};
+
+struct CleanReport {
+  std::size_t verticesBefore = 0, facesBefore = 0, verticesAfter = 0, facesAfter = 0;
+  std::size_t collapses = 0;        ///< edges collapsed
+  std::size_t refusedTopology = 0;  ///< collapses refused: the mesh would stop being a closed 2-manifold there
+  std::size_t refusedGeometry = 0;  ///< collapses refused: a triangle would flip, turn too far or degenerate
+  std::size_t flips = 0;            ///< cap edges flipped
+  std::size_t lockedVertices = 0;   ///< on a boundary or non-manifold edge or vertex: never moved
+  std::size_t float32DegenerateBefore = 0, float32DegenerateAfter = 0;
+  std::size_t sliversBefore = 0, sliversAfter = 0;  ///< minimum angle below 1°
+  double minAngleBefore = 0.0, minAngleAfter = 0.0;  ///< degrees (TriangleQuality::minAngle)
+  double shortestEdgeBefore = 0.0, shortestEdgeAfter = 0.0;
+  double seconds = 0.0;
+};
+
+struct CleanResult {
+  Mesh mesh;
+  CleanReport report;
+};
+
+/// Collapses every edge shorter than options.collapseLength or with ends that coincide in float32
+/// (shortest first; the new vertex at the midpoint, else at either end), then flips cap edges, then
+/// collapses the shortest edge of any triangle still degenerate in float32. A collapse is made only when
+/// it keeps the mesh 2-manifold (the edge has two triangles, the ends share exactly the two opposite
+/// vertices, no two triangles become one) and no surviving triangle flips, turns by more than
+/// maxNormalChange or becomes float32-degenerate; vertices on a boundary or non-manifold edge or at a
+/// non-manifold vertex are never moved. A watertight, manifold, oriented mesh stays so, with the same
+/// components and Euler characteristic. Deterministic. @throws InvalidArgument for bad indices/options.
+CleanResult cleanMesh(const Mesh& mesh, const CleanOptions& options = {});
+
+// ---------------------------------------------------------------------------------------------
+// Simplification (meshoptimizer)
+
+/// Whether this build has meshoptimizer (simplifyMesh works).
+bool simplificationAvailable() noexcept;
+
+struct SimplifyOptions {
+  /// Triangle budget (0: none).
+  std::size_t maxTriangles = 0;
+  /// Error bound in input units (0: none): meshopt_simplify's target error, which it takes relative to the
+  /// mesh extent (meshopt_simplifyScale). With both set the simplifier stops at whichever comes first.
+  double maxError = 0.0;
+};
+
+struct SimplifyReport {
+  bool applied = false;  ///< a budget or bound was set
+  std::size_t facesBefore = 0, facesAfter = 0;
+  double targetError = 0.0;  ///< relative to the extent, as passed to meshopt_simplify (1: no bound)
+  double resultError = 0.0;  ///< meshoptimizer's own estimate, input units (0 after the fallback)
+  /// Pairs of triangles on the same three vertices that meshopt_simplify left (a collapsed tetrahedron),
+  /// removed before the topology check.
+  std::size_t duplicatePairsRemoved = 0;
+  /// meshoptimizer's result still had another topology than the input (it does not check the link
+  /// condition: two sheets can end up sharing an edge), so the mesh was simplified instead by the
+  /// library's own quadric-error edge collapses, which keep a closed 2-manifold one.
+  bool fallback = false;
+  /// The result has the input's topology (watertight, manifold and oriented as the input, same components
+  /// and Euler characteristic). false only if the fallback failed too: the input is returned unchanged.
+  bool topologyKept = true;
+  double seconds = 0.0;
+};
+
+struct SimplifyResult {
+  Mesh mesh;
+  SimplifyReport report;
+};
+
+/// meshopt_simplify (the topology-preserving simplifier, never the sloppy one) to the budget and/or bound;
+/// unreferenced vertices and duplicate triangle pairs are removed, and the result's topology is checked
+/// against the input's. When it differs, the library's own quadric-error edge collapses (link condition
+/// and normal checks, as cleanMesh) simplify the input instead (SimplifyReport::fallback). No budget and no
+/// bound: the mesh as it is. @throws InvalidArgument when a budget or bound is set and the build lacks
+/// meshoptimizer (the message says so), or for a negative bound.
+SimplifyResult simplifyMesh(const Mesh& mesh, const SimplifyOptions& options);
+
+// ---------------------------------------------------------------------------------------------
+// Deviation from the level set
+
+/// Values (and gradients, #Q×3) of a field at #Q points.
+using FieldGradientSampler = std::function<void(const Points& queries, Eigen::VectorXd& values, Points& gradients)>;
+
+/// How far a mesh of {f = iso} is from it, at every vertex and every face centre: the first-order
+/// distance |f(x) − iso| / |∇f(x)|, and where that exceeds a quarter of `limit`, the length of the Newton
+/// path x ← x − (f(x) − iso) ∇f/|∇f|² onto the level set (10 steps of at most 1% of the side each; kept
+/// when it converges: |f − iso| ≤ 1e-6·side or a first-order rest ≤ 1e-5·side), which stays accurate
+/// where |∇f| is small and the first-order estimate overshoots (a flat maximum of f just above iso in a
+/// thin part).
+struct LevelSetDeviation {
+  std::size_t candidates = 0;      ///< vertices + faces of the mesh
+  std::size_t samples = 0;         ///< the samples measured (all candidates, or an even stride of them)
+  std::size_t flatSamples = 0;     ///< samples with |∇f| < 1e-6, left out
+  std::size_t refinedSamples = 0;  ///< samples whose Newton path replaced the first-order estimate
+  double max = 0.0, mean = 0.0, rms = 0.0;
+  double p99 = 0.0, p999 = 0.0;  ///< 99th and 99.9th percentiles (nearest rank)
+  Eigen::Vector3d maxAt = Eigen::Vector3d::Zero();
+  double side = 0.0;         ///< the reference length: the largest side of the field's input bounds
+  double relativeMax = 0.0;  ///< max / side
+  double limit = 0.0;        ///< 0.001 · side, the target of docs/method.md §7
+  std::size_t aboveLimit = 0;  ///< samples farther than limit
+  double seconds = 0.0;
+};
+
+/// maxSamples > 0 measures an even stride of at most that many of the vertices and face centres.
+LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const Mesh& mesh, double iso, double side,
+                                    std::size_t maxSamples = 0);
+/// The same through a field's evaluator; side = the largest side of field.bounds().
+LevelSetDeviation levelSetDeviation(const FieldEvaluator& evaluator, const ImplicitField& field, const Mesh& mesh,
+                                    double iso, std::size_t maxSamples = 0);
+
+// ---------------------------------------------------------------------------------------------
+// The pipelines' step
+
+struct MeshFinishOptions {
+  bool clean = true;
+  /// Collapse edges shorter than this fraction of the grid cell (CleanOptions::collapseLength).
+  double collapseFraction = 0.1;
+  SimplifyOptions simplify{};
+  /// Measure each mesh's deviation from its level set (one field evaluation with gradients per vertex and
+  /// per face).
+  bool measureDeviation = true;
+  /// At most this many samples (an even stride over vertices and face centres) per mesh; 0: all. The mean
+  /// and the quantiles of 100k samples are within a few per cent of the full measure; the maximum is the
+  /// largest of the samples (report.json gives samples and candidates). Each sample costs one gradient
+  /// evaluation (plus Newton steps when it is not small): on fandisk_50k all 386k + 248k samples took
+  /// 7 s, longer than the grid sampling; on fandisk_550k's 3.5M-triangle zero mesh all 5.3M took 25 s.
+  std::size_t deviationSamples = 100000;
+};
+
+struct MeshFinishReport {
+  CleanReport clean;        ///< zero when cleaning is off
+  SimplifyReport simplify;  ///< applied false without a budget or bound
+  bool deviationMeasured = false;
+  LevelSetDeviation deviation;
+  double seconds = 0.0;
+};
+
+/// @throws InvalidArgument for a negative fraction or bound, or a budget or bound without meshoptimizer in
+/// the build ("... this build of duplexfit has no meshoptimizer ...").
+void validateFinishOptions(const MeshFinishOptions& options);
+
+struct FinishResult {
+  std::vector<Mesh> meshes;
+  std::vector<MeshFinishReport> reports;  ///< one per mesh
+  double seconds = 0.0;
+};
+
+/// Cleans (collapse length = collapseFraction · cell), simplifies (when asked; then cleans again) and
+/// measures every mesh of {f = isoValues[i]} (meshes[i]) against `field` through `evaluator`.
+/// @throws InvalidArgument (options, sizes), DeviceError, Cancelled (checked between meshes).
+FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField& field, std::vector<Mesh> meshes,
+                            const std::vector<double>& isoValues, double cell, const MeshFinishOptions& options = {},
+                            Interrupter* interrupter = nullptr);
+
+}  // namespace duplexfit

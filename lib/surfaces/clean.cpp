@@ -1,0 +1,580 @@
+// cleanMesh: edge collapses of short edges (needles, near-duplicate vertices) and edge flips of caps, with
+// the checks that keep a closed 2-manifold one (link condition, no merged triangles, no flipped or
+// float32-degenerate neighbour), so that no triangle is degenerate once written in float32.
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <iterator>
+#include <queue>
+#include <tuple>
+#include <vector>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/measure.hpp"
+#include "duplexfit/mesh_finish.hpp"
+#include "surfaces/collapse.hpp"
+
+namespace duplexfit {
+
+namespace {
+
+using Vec = Eigen::Vector3d;
+using Tri = std::array<int, 3>;
+
+double cosDegrees(double degrees) { return std::cos(degrees * M_PI / 180.0); }
+
+/// The largest interior angle (degrees) and its corner.
+double maxAngle(const Vec& a, const Vec& b, const Vec& c, int& corner) {
+  const Vec p[3] = {a, b, c};
+  double largest = -1.0;
+  corner = 0;
+  for (int k = 0; k < 3; ++k) {
+    const Vec e1 = p[(k + 1) % 3] - p[k], e2 = p[(k + 2) % 3] - p[k];
+    const double angle = std::atan2(e1.cross(e2).norm(), e1.dot(e2)) * (180.0 / M_PI);
+    if (angle > largest) {
+      largest = angle;
+      corner = k;
+    }
+  }
+  return largest;
+}
+
+class Cleaner {
+ public:
+  Cleaner(const Mesh& mesh, const CleanOptions& options) : o_(options) {
+    const auto nv = static_cast<std::size_t>(mesh.vertices.rows());
+    const auto nf = static_cast<std::size_t>(mesh.faces.rows());
+    p_.resize(nv);
+    for (std::size_t v = 0; v < nv; ++v) p_[v] = mesh.vertices.row(static_cast<Eigen::Index>(v));
+    f_.resize(nf);
+    alive_.assign(nf, 1);
+    vf_.resize(nv);
+    for (std::size_t i = 0; i < nf; ++i) {
+      Tri& t = f_[i];
+      for (int k = 0; k < 3; ++k) {
+        t[static_cast<std::size_t>(k)] = mesh.faces(static_cast<Eigen::Index>(i), k);
+        if (t[static_cast<std::size_t>(k)] < 0 || static_cast<std::size_t>(t[static_cast<std::size_t>(k)]) >= nv) {
+          throw InvalidArgument("cleanMesh: face " + std::to_string(i) + " has an index out of range");
+        }
+      }
+      if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) {
+        alive_[i] = 0;  // a repeated index: no triangle at all
+        continue;
+      }
+      for (int v : t) vf_[static_cast<std::size_t>(v)].push_back(static_cast<int>(i));
+      ++aliveFaces_;
+    }
+    lockNonManifold();
+  }
+
+  /// Quadric-error simplification with the same safe collapses (Garland–Heckbert: each vertex carries the
+  /// sum of the squared distances to the planes of its original faces; an edge costs the smallest sum at
+  /// the optimal point, the midpoint or either end): cheapest first, until at most `target` faces remain
+  /// (0: no budget) or the cheapest collapse would move the surface by more than maxError (0: no bound).
+  void simplify(std::size_t target, double maxError) {
+    quadrics_.assign(p_.size(), Quadric{});
+    version_.assign(p_.size(), 0);
+    for (std::size_t i = 0; i < f_.size(); ++i) {
+      if (!alive_[i]) continue;
+      const Tri& t = f_[i];
+      const Vec n = normal(t);
+      const double len = n.norm();
+      if (!(len > 0.0)) continue;
+      const Vec u = n / len;
+      for (int v : t) quadrics_[static_cast<std::size_t>(v)].addPlane(u, u.dot(pos(t[0])));
+    }
+    using Entry = std::tuple<double, int, int, unsigned, unsigned>;
+    std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> heap;
+    std::vector<Vec> positions;
+    const auto push = [&](int a, int b) {
+      if (a > b) std::swap(a, b);
+      const double cost = edgeCost(a, b, positions);
+      heap.emplace(cost, a, b, version_[static_cast<std::size_t>(a)], version_[static_cast<std::size_t>(b)]);
+    };
+    for (std::size_t i = 0; i < f_.size(); ++i) {
+      if (!alive_[i]) continue;
+      for (int k = 0; k < 3; ++k) {
+        const int a = f_[i][static_cast<std::size_t>(k)], b = f_[i][static_cast<std::size_t>((k + 1) % 3)];
+        if (a < b) push(a, b);
+      }
+    }
+    while (!heap.empty() && (target == 0 || aliveFaces_ > target)) {
+      const auto [cost, a, b, va, vb] = heap.top();
+      heap.pop();
+      if (va != version_[static_cast<std::size_t>(a)] || vb != version_[static_cast<std::size_t>(b)]) continue;
+      if (!vAlive(a) || !vAlive(b) || !hasEdge(a, b)) continue;
+      if (maxError > 0.0 && std::sqrt(std::max(cost, 0.0)) > maxError) break;
+      edgeCost(a, b, positions);
+      if (!tryCollapse(a, b, &positions)) continue;
+      quadrics_[static_cast<std::size_t>(a)] += quadrics_[static_cast<std::size_t>(b)];
+      ++version_[static_cast<std::size_t>(a)];
+      ++version_[static_cast<std::size_t>(b)];
+      for (int n : neighbours(a)) push(a, n);
+    }
+  }
+
+  /// Phase 1: collapse edges shorter than the collapse length or with float32-coincident ends, shortest
+  /// first; repeated while a pass collapses something (a refusal can go away when a neighbour collapses).
+  void collapseShort() {
+    for (int pass = 0; pass < 4; ++pass) {
+      const std::size_t before = report.collapses;
+      using Entry = std::tuple<double, int, int>;
+      std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> heap;
+      const auto consider = [&](int a, int b) {
+        if (a > b) std::swap(a, b);
+        const double len = (p_[static_cast<std::size_t>(a)] - p_[static_cast<std::size_t>(b)]).norm();
+        if (isShort(a, b, len)) heap.emplace(len, a, b);
+      };
+      for (std::size_t i = 0; i < f_.size(); ++i) {
+        if (!alive_[i]) continue;
+        const Tri& t = f_[i];
+        for (int k = 0; k < 3; ++k) {
+          const int a = t[static_cast<std::size_t>(k)], b = t[static_cast<std::size_t>((k + 1) % 3)];
+          if (a < b) consider(a, b);  // each interior edge once (its other face traverses it b → a)
+        }
+      }
+      while (!heap.empty()) {
+        const auto [len, a, b] = heap.top();
+        heap.pop();
+        if (!vAlive(a) || !vAlive(b)) continue;
+        if ((p_[static_cast<std::size_t>(a)] - p_[static_cast<std::size_t>(b)]).norm() != len) continue;  // stale
+        if (!hasEdge(a, b)) continue;
+        if (!tryCollapse(a, b)) continue;
+        for (int n : neighbours(a)) consider(a, n);
+      }
+      if (report.collapses == before) break;
+    }
+  }
+
+  /// Phase 2: flip the edge opposite a cap's large angle when that improves the pair.
+  void flipCaps() {
+    if (!o_.flips) return;
+    for (int pass = 0; pass < 3; ++pass) {
+      std::size_t flipped = 0;
+      for (std::size_t i = 0; i < f_.size(); ++i) {
+        if (alive_[i] && tryFlip(static_cast<int>(i))) ++flipped;
+      }
+      report.flips += flipped;
+      if (flipped == 0) break;
+    }
+  }
+
+  /// Phase 3: a triangle still degenerate in float32 (collinear corners, or a refused short edge):
+  /// collapse its edges, shortest first, whatever their length.
+  void collapseDegenerate() {
+    for (int pass = 0; pass < 3; ++pass) {
+      bool changed = false;
+      for (std::size_t i = 0; i < f_.size(); ++i) {
+        if (!alive_[i]) continue;
+        const Tri t = f_[i];
+        if (!float32Degenerate(pos(t[0]), pos(t[1]), pos(t[2]))) continue;
+        std::array<std::pair<double, int>, 3> edges;
+        for (int k = 0; k < 3; ++k) {
+          edges[static_cast<std::size_t>(k)] = {(pos(t[static_cast<std::size_t>(k)]) -
+                                                 pos(t[static_cast<std::size_t>((k + 1) % 3)]))
+                                                    .norm(),
+                                                k};
+        }
+        std::sort(edges.begin(), edges.end());
+        for (const auto& e : edges) {
+          const int a = t[static_cast<std::size_t>(e.second)], b = t[static_cast<std::size_t>((e.second + 1) % 3)];
+          if (tryCollapse(std::min(a, b), std::max(a, b))) {
+            changed = true;
+            break;
+          }
+        }
+      }
+      if (!changed) break;
+    }
+  }
+
+  Mesh result() const {
+    std::vector<int> id(p_.size(), -1);
+    std::size_t nf = 0;
+    for (std::size_t i = 0; i < f_.size(); ++i) {
+      if (!alive_[i]) continue;
+      ++nf;
+      for (int v : f_[i]) id[static_cast<std::size_t>(v)] = 0;
+    }
+    int next = 0;
+    for (int& x : id) {
+      if (x == 0) x = next++;
+    }
+    Mesh m;
+    m.vertices.resize(next, 3);
+    for (std::size_t v = 0; v < p_.size(); ++v) {
+      if (id[v] >= 0) m.vertices.row(id[v]) = p_[v].transpose();
+    }
+    m.faces.resize(static_cast<Eigen::Index>(nf), 3);
+    Eigen::Index row = 0;
+    for (std::size_t i = 0; i < f_.size(); ++i) {
+      if (!alive_[i]) continue;
+      for (int k = 0; k < 3; ++k) m.faces(row, k) = id[static_cast<std::size_t>(f_[i][static_cast<std::size_t>(k)])];
+      ++row;
+    }
+    return m;
+  }
+
+  CleanReport report;
+
+ private:
+  const Vec& pos(int v) const { return p_[static_cast<std::size_t>(v)]; }
+  bool vAlive(int v) const { return !vf_[static_cast<std::size_t>(v)].empty(); }
+  static bool contains(const Tri& t, int v) { return t[0] == v || t[1] == v || t[2] == v; }
+
+  bool isShort(int a, int b, double len) const {
+    return len < o_.collapseLength || pos(a).cast<float>() == pos(b).cast<float>();
+  }
+
+  bool hasEdge(int a, int b) const {
+    for (int f : vf_[static_cast<std::size_t>(a)]) {
+      if (contains(f_[static_cast<std::size_t>(f)], b)) return true;
+    }
+    return false;
+  }
+
+  std::vector<int> neighbours(int v) const {
+    std::vector<int> n;
+    for (int f : vf_[static_cast<std::size_t>(v)]) {
+      for (int w : f_[static_cast<std::size_t>(f)]) {
+        if (w != v) n.push_back(w);
+      }
+    }
+    std::sort(n.begin(), n.end());
+    n.erase(std::unique(n.begin(), n.end()), n.end());
+    return n;
+  }
+
+  /// Locks the ends of every edge without exactly two faces traversing it in opposite directions, and
+  /// every vertex whose faces do not form a single closed fan.
+  void lockNonManifold() {
+    locked_.assign(p_.size(), 0);
+    std::vector<std::pair<std::uint64_t, int>> edges;  // (undirected key, +1 for a < b / −1)
+    for (std::size_t i = 0; i < f_.size(); ++i) {
+      if (!alive_[i]) continue;
+      for (int k = 0; k < 3; ++k) {
+        const auto a = static_cast<std::uint64_t>(f_[i][static_cast<std::size_t>(k)]);
+        const auto b = static_cast<std::uint64_t>(f_[i][static_cast<std::size_t>((k + 1) % 3)]);
+        edges.emplace_back((std::min(a, b) << 32) | std::max(a, b), a < b ? 1 : -1);
+      }
+    }
+    std::sort(edges.begin(), edges.end());
+    for (std::size_t i = 0; i < edges.size();) {
+      std::size_t j = i;
+      int sum = 0;
+      while (j < edges.size() && edges[j].first == edges[i].first) sum += edges[j++].second;
+      if (j - i != 2 || sum != 0) {
+        locked_[edges[i].first >> 32] = 1;
+        locked_[edges[i].first & 0xffffffffULL] = 1;
+      }
+      i = j;
+    }
+    for (std::size_t v = 0; v < p_.size(); ++v) {
+      if (!locked_[v] && !vf_[v].empty() && !closedFan(static_cast<int>(v))) locked_[v] = 1;
+    }
+    report.lockedVertices = static_cast<std::size_t>(std::count(locked_.begin(), locked_.end(), 1));
+  }
+
+  /// The faces around v form one closed, consistently oriented fan.
+  bool closedFan(int v) const {
+    const std::vector<int>& faces = vf_[static_cast<std::size_t>(v)];
+    // Face (v, b, c) leads to the face (v, c, d): follow "next" from each face's last corner.
+    std::vector<std::pair<int, int>> nextPrev;  // (b, c) per face
+    for (int f : faces) {
+      const Tri& t = f_[static_cast<std::size_t>(f)];
+      const int k = t[0] == v ? 0 : (t[1] == v ? 1 : 2);
+      nextPrev.emplace_back(t[static_cast<std::size_t>((k + 1) % 3)], t[static_cast<std::size_t>((k + 2) % 3)]);
+    }
+    std::size_t steps = 0, cur = 0;
+    do {
+      const int want = nextPrev[cur].second;
+      std::size_t found = nextPrev.size();
+      for (std::size_t j = 0; j < nextPrev.size(); ++j) {
+        if (nextPrev[j].first == want) {
+          if (found != nextPrev.size()) return false;  // two faces continue the fan
+          found = j;
+        }
+      }
+      if (found == nextPrev.size()) return false;
+      cur = found;
+      ++steps;
+    } while (cur != 0 && steps <= nextPrev.size());
+    return cur == 0 && steps == nextPrev.size();
+  }
+
+  /// Collapses edge (a, b) into a (at the first of `positions` that passes the checks; default: the
+  /// midpoint, else a's or b's position) when that is safe.
+  bool tryCollapse(int a, int b, const std::vector<Vec>* positions = nullptr) {
+    if (locked_[static_cast<std::size_t>(a)] || locked_[static_cast<std::size_t>(b)]) {
+      ++report.refusedTopology;
+      return false;
+    }
+    int shared[2] = {-1, -1}, count = 0;
+    for (int f : vf_[static_cast<std::size_t>(a)]) {
+      if (contains(f_[static_cast<std::size_t>(f)], b)) {
+        if (count < 2) shared[count] = f;
+        ++count;
+      }
+    }
+    if (count != 2) {
+      ++report.refusedTopology;
+      return false;
+    }
+    const auto third = [&](int f) {
+      const Tri& t = f_[static_cast<std::size_t>(f)];
+      for (int v : t) {
+        if (v != a && v != b) return v;
+      }
+      return -1;
+    };
+    const int w0 = third(shared[0]), w1 = third(shared[1]);
+    // Link condition: a and b have exactly the two opposite vertices as common neighbours.
+    const std::vector<int> na = neighbours(a), nb = neighbours(b);
+    std::vector<int> common;
+    std::set_intersection(na.begin(), na.end(), nb.begin(), nb.end(), std::back_inserter(common));
+    if (w0 == w1 || common.size() != 2 || !(std::find(common.begin(), common.end(), w0) != common.end() &&
+                                             std::find(common.begin(), common.end(), w1) != common.end())) {
+      ++report.refusedTopology;
+      return false;
+    }
+    // The surviving faces around the merged vertex, with b renamed a: no two may be the same triangle.
+    std::vector<int> ring;
+    for (int f : vf_[static_cast<std::size_t>(a)]) {
+      if (f != shared[0] && f != shared[1]) ring.push_back(f);
+    }
+    for (int f : vf_[static_cast<std::size_t>(b)]) {
+      if (f != shared[0] && f != shared[1]) ring.push_back(f);
+    }
+    std::vector<Tri> keys;
+    for (int f : ring) {
+      Tri t = f_[static_cast<std::size_t>(f)];
+      for (int& v : t) {
+        if (v == b) v = a;
+      }
+      std::sort(t.begin(), t.end());
+      keys.push_back(t);
+    }
+    std::sort(keys.begin(), keys.end());
+    if (std::adjacent_find(keys.begin(), keys.end()) != keys.end()) {
+      ++report.refusedTopology;
+      return false;
+    }
+    // The local surface normal: the area-weighted normal of every face around the edge's ends.
+    Vec ringNormal = Vec::Zero();
+    for (int f : ring) ringNormal += normal(f_[static_cast<std::size_t>(f)]);
+    ringNormal += normal(f_[static_cast<std::size_t>(shared[0])]) + normal(f_[static_cast<std::size_t>(shared[1])]);
+    const std::vector<Vec> defaults = {0.5 * (pos(a) + pos(b)), pos(a), pos(b)};
+    for (const Vec& q : positions ? *positions : defaults) {
+      if (!geometryOk(ring, a, b, q, ringNormal)) continue;
+      apply(a, b, q, shared);
+      ++report.collapses;
+      return true;
+    }
+    ++report.refusedGeometry;
+    return false;
+  }
+
+  Vec normal(const Tri& t) const { return (pos(t[1]) - pos(t[0])).cross(pos(t[2]) - pos(t[0])); }
+
+  /// Moving a and b to q keeps every surviving face well formed and facing the same way.
+  bool geometryOk(const std::vector<int>& ring, int a, int b, const Vec& q, const Vec& ringNormal) const {
+    const double maxCos = cosDegrees(o_.maxNormalChange);
+    for (int f : ring) {
+      const Tri& t = f_[static_cast<std::size_t>(f)];
+      Vec before[3], after[3];
+      for (int k = 0; k < 3; ++k) {
+        const int v = t[static_cast<std::size_t>(k)];
+        before[k] = pos(v);
+        after[k] = v == a || v == b ? q : pos(v);
+      }
+      if (float32Degenerate(after[0], after[1], after[2])) return false;
+      const Vec nb = (before[1] - before[0]).cross(before[2] - before[0]);
+      const Vec na = (after[1] - after[0]).cross(after[2] - after[0]);
+      const double la = na.norm(), lb = nb.norm();
+      if (!(la > 0.0)) return false;
+      // A sliver's own normal is noise: it must only face the way the surface around it does.
+      const bool sliver = !(lb > 0.0) || minAngleDegrees(before[0], before[1], before[2]) < 1.0;
+      if (sliver) {
+        if (!(na.dot(ringNormal) > 0.0)) return false;
+      } else if (!(na.dot(nb) >= maxCos * la * lb)) {
+        return false;
+      }
+    }
+    return true;
+  }
+
+  void removeFace(int f) {
+    alive_[static_cast<std::size_t>(f)] = 0;
+    for (int v : f_[static_cast<std::size_t>(f)]) {
+      std::vector<int>& list = vf_[static_cast<std::size_t>(v)];
+      list.erase(std::find(list.begin(), list.end(), f));
+    }
+  }
+
+  void apply(int a, int b, const Vec& q, const int* shared) {
+    removeFace(shared[0]);
+    removeFace(shared[1]);
+    aliveFaces_ -= 2;
+    std::vector<int>& fa = vf_[static_cast<std::size_t>(a)];
+    for (int f : vf_[static_cast<std::size_t>(b)]) {
+      for (int& v : f_[static_cast<std::size_t>(f)]) {
+        if (v == b) v = a;
+      }
+      fa.push_back(f);
+    }
+    vf_[static_cast<std::size_t>(b)].clear();
+    p_[static_cast<std::size_t>(a)] = q;
+  }
+
+  /// Flips the edge opposite the largest angle of face f when f is a cap and the flip is safe and better.
+  bool tryFlip(int f) {
+    const Tri& t = f_[static_cast<std::size_t>(f)];
+    int corner = 0;
+    if (maxAngle(pos(t[0]), pos(t[1]), pos(t[2]), corner) <= o_.capAngle) return false;
+    const int v = t[static_cast<std::size_t>(corner)];
+    const int a = t[static_cast<std::size_t>((corner + 1) % 3)], b = t[static_cast<std::size_t>((corner + 2) % 3)];
+    if (locked_[static_cast<std::size_t>(a)] || locked_[static_cast<std::size_t>(b)] ||
+        locked_[static_cast<std::size_t>(v)]) {
+      return false;
+    }
+    // The other face on edge a → b traverses it b → a: (b, a, w).
+    int g = -1, count = 0;
+    for (int h : vf_[static_cast<std::size_t>(a)]) {
+      if (h != f && contains(f_[static_cast<std::size_t>(h)], b)) {
+        g = h;
+        ++count;
+      }
+    }
+    if (count != 1) return false;
+    const Tri& s = f_[static_cast<std::size_t>(g)];
+    int w = -1;
+    for (int x : s) {
+      if (x != a && x != b) w = x;
+    }
+    if (w < 0 || w == v || locked_[static_cast<std::size_t>(w)] || hasEdge(v, w)) return false;
+    // (a, b, v) and (b, a, w) become (v, a, w) and (w, b, v).
+    const Vec &pa = pos(a), &pb = pos(b), &pv = pos(v), &pw = pos(w);
+    if (float32Degenerate(pv, pa, pw) || float32Degenerate(pw, pb, pv)) return false;
+    const double oldMin = std::min(minAngleDegrees(pa, pb, pv), minAngleDegrees(pb, pa, pw));
+    const double newMin = std::min(minAngleDegrees(pv, pa, pw), minAngleDegrees(pw, pb, pv));
+    if (!(newMin > oldMin)) return false;
+    const Vec n1 = (pa - pv).cross(pw - pv), n2 = (pb - pw).cross(pv - pw);
+    const Vec sum = (pb - pa).cross(pv - pa) + (pa - pb).cross(pw - pb);
+    const double c = cosDegrees(o_.flipNormalAngle);
+    if (!(n1.dot(n2) >= c * n1.norm() * n2.norm()) || !(n1.dot(sum) >= c * n1.norm() * sum.norm()) ||
+        !(n2.dot(sum) >= c * n2.norm() * sum.norm())) {
+      return false;
+    }
+    f_[static_cast<std::size_t>(f)] = {v, a, w};
+    f_[static_cast<std::size_t>(g)] = {w, b, v};
+    std::vector<int>& la = vf_[static_cast<std::size_t>(a)];
+    la.erase(std::find(la.begin(), la.end(), g));
+    std::vector<int>& lb = vf_[static_cast<std::size_t>(b)];
+    lb.erase(std::find(lb.begin(), lb.end(), f));
+    vf_[static_cast<std::size_t>(v)].push_back(g);
+    vf_[static_cast<std::size_t>(w)].push_back(f);
+    return true;
+  }
+
+  /// Σ (n·x − d)² over a set of planes.
+  struct Quadric {
+    Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
+    Vec b = Vec::Zero();
+    double c = 0.0;
+    void addPlane(const Vec& n, double d) {
+      a += n * n.transpose();
+      b += d * n;
+      c += d * d;
+    }
+    double operator()(const Vec& x) const { return x.dot(a * x) - 2.0 * b.dot(x) + c; }
+    Quadric& operator+=(const Quadric& o) {
+      a += o.a;
+      b += o.b;
+      c += o.c;
+      return *this;
+    }
+  };
+
+  /// The cost of collapsing (a, b) and its candidate positions, cheapest first: the quadric's minimum
+  /// (when it is well defined and within one edge length of the midpoint), the midpoint, a and b.
+  double edgeCost(int a, int b, std::vector<Vec>& positions) const {
+    Quadric q = quadrics_[static_cast<std::size_t>(a)];
+    q += quadrics_[static_cast<std::size_t>(b)];
+    const Vec mid = 0.5 * (pos(a) + pos(b));
+    positions.assign({mid, pos(a), pos(b)});
+    const Eigen::LDLT<Eigen::Matrix3d> ldlt(q.a);
+    if (ldlt.info() == Eigen::Success && ldlt.isPositive()) {
+      const Vec best = ldlt.solve(q.b);
+      if (best.allFinite() && (best - mid).norm() <= (pos(a) - pos(b)).norm()) positions.push_back(best);
+    }
+    std::sort(positions.begin(), positions.end(), [&q](const Vec& x, const Vec& y) { return q(x) < q(y); });
+    return q(positions.front());
+  }
+
+  CleanOptions o_;
+  std::size_t aliveFaces_ = 0;
+  std::vector<Quadric> quadrics_;
+  std::vector<unsigned> version_;
+  std::vector<Vec> p_;
+  std::vector<Tri> f_;
+  std::vector<char> alive_, locked_;
+  std::vector<std::vector<int>> vf_;
+};
+
+}  // namespace
+
+CleanResult cleanMesh(const Mesh& mesh, const CleanOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  if (!(options.collapseLength >= 0.0) || !std::isfinite(options.collapseLength) ||
+      !(options.capAngle > 90.0 && options.capAngle < 180.0) ||
+      !(options.flipNormalAngle >= 0.0 && options.flipNormalAngle <= 90.0) ||
+      !(options.maxNormalChange >= 0.0 && options.maxNormalChange <= 180.0)) {
+    throw InvalidArgument("cleanMesh: collapseLength must be >= 0, capAngle in (90, 180), flipNormalAngle in "
+                          "[0, 90] and maxNormalChange in [0, 180]");
+  }
+  validateMesh(mesh, "cleanMesh");
+  Cleaner cleaner(mesh, options);
+  CleanReport& r = cleaner.report;
+  const TriangleQuality before = triangleQuality(mesh, 1.0);
+  cleaner.collapseShort();
+  cleaner.flipCaps();
+  cleaner.collapseDegenerate();
+  CleanResult out;
+  out.mesh = cleaner.result();
+  const TriangleQuality after = triangleQuality(out.mesh, 1.0);
+  r.verticesBefore = static_cast<std::size_t>(mesh.vertices.rows());
+  r.facesBefore = static_cast<std::size_t>(mesh.faces.rows());
+  r.verticesAfter = static_cast<std::size_t>(out.mesh.vertices.rows());
+  r.facesAfter = static_cast<std::size_t>(out.mesh.faces.rows());
+  r.float32DegenerateBefore = before.float32DegenerateFaces;
+  r.float32DegenerateAfter = after.float32DegenerateFaces;
+  r.sliversBefore = before.slivers;
+  r.sliversAfter = after.slivers;
+  r.minAngleBefore = before.minAngle;
+  r.minAngleAfter = after.minAngle;
+  r.shortestEdgeBefore = before.shortestEdge;
+  r.shortestEdgeAfter = after.shortestEdge;
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  out.report = r;
+  return out;
+}
+
+namespace detail {
+
+Mesh collapseSimplify(const Mesh& mesh, std::size_t target, double maxError, std::size_t* collapses) {
+  validateMesh(mesh, "simplification");
+  Cleaner cleaner(mesh, CleanOptions{});
+  cleaner.simplify(target, maxError);
+  if (collapses) *collapses = cleaner.report.collapses;
+  return cleaner.result();
+}
+
+}  // namespace detail
+
+}  // namespace duplexfit

@@ -1,0 +1,238 @@
+// The pipelines' last step on each level set's mesh: cleaning, optional simplification, and the mesh's
+// deviation from the level set, |f − iso| / |∇f| at the vertices and face centres (docs/method.md §7).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/mesh_finish.hpp"
+
+namespace duplexfit {
+
+namespace {
+
+/// The first-order distances of `queries` (left at −1 where |∇f| is flat).
+void firstOrder(const FieldGradientSampler& sampler, const Points& queries, double iso, double* out) {
+  Eigen::VectorXd values;
+  Points gradients;
+  sampler(queries, values, gradients);
+  if (values.size() != queries.rows() || gradients.rows() != queries.rows()) {
+    throw InvalidArgument("level-set deviation: the sampler returned the wrong number of values");
+  }
+  for (Eigen::Index i = 0; i < queries.rows(); ++i) {
+    const double g = gradients.row(i).norm();
+    out[i] = g >= 1e-6 ? std::abs(values[i] - iso) / g : -1.0;
+  }
+}
+
+}  // namespace
+
+LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const Mesh& mesh, double iso, double side,
+                                    std::size_t maxSamples) {
+  const auto startTime = std::chrono::steady_clock::now();
+  LevelSetDeviation d;
+  d.side = side;
+  d.limit = 1e-3 * side;
+  const Eigen::Index nv = mesh.vertices.rows(), nf = mesh.faces.rows();
+  const Eigen::Index all = nv + nf;
+  d.candidates = static_cast<std::size_t>(all);
+  // Above maxSamples, an evenly strided subset of the vertices and face centres (deterministic).
+  const Eigen::Index total =
+      maxSamples > 0 && static_cast<std::size_t>(all) > maxSamples ? static_cast<Eigen::Index>(maxSamples) : all;
+  const auto sample = [&](Eigen::Index picked) -> Eigen::RowVector3d {
+    const Eigen::Index s = total == all ? picked : static_cast<Eigen::Index>((static_cast<long double>(picked) * all) / total);
+    if (s < nv) return mesh.vertices.row(s);
+    const Eigen::Index f = s - nv;
+    return (mesh.vertices.row(mesh.faces(f, 0)) + mesh.vertices.row(mesh.faces(f, 1)) +
+            mesh.vertices.row(mesh.faces(f, 2))) /
+           3.0;
+  };
+  std::vector<double> e(static_cast<std::size_t>(total));
+  constexpr Eigen::Index kChunk = Eigen::Index{1} << 20;
+  Points queries;
+  for (Eigen::Index begin = 0; begin < total; begin += kChunk) {
+    const Eigen::Index end = std::min(total, begin + kChunk);
+    queries.resize(end - begin, 3);
+    for (Eigen::Index s = begin; s < end; ++s) queries.row(s - begin) = sample(s);
+    firstOrder(sampler, queries, iso, e.data() + begin);
+  }
+  // Newton paths for the samples whose first-order distance is not small.
+  constexpr int kSteps = 10;
+  std::vector<Eigen::Index> refine;
+  for (Eigen::Index s = 0; s < total; ++s) {
+    if (e[static_cast<std::size_t>(s)] > 0.25 * d.limit) refine.push_back(s);
+  }
+  for (std::size_t begin = 0; begin < refine.size(); begin += static_cast<std::size_t>(kChunk)) {
+    const std::size_t end = std::min(refine.size(), begin + static_cast<std::size_t>(kChunk));
+    std::vector<Eigen::Index> active(refine.begin() + static_cast<std::ptrdiff_t>(begin),
+                                     refine.begin() + static_cast<std::ptrdiff_t>(end));
+    Points start(static_cast<Eigen::Index>(active.size()), 3);
+    for (std::size_t i = 0; i < active.size(); ++i) start.row(static_cast<Eigen::Index>(i)) = sample(active[i]);
+    Points x = start;
+    Eigen::VectorXd values;
+    Points gradients;
+    // Each step evaluates only the paths that have not converged yet (most take two or three steps).
+    for (int step = 0; step <= kSteps && !active.empty(); ++step) {
+      const auto n = static_cast<Eigen::Index>(active.size());
+      sampler(x, values, gradients);
+      if (values.size() != n || gradients.rows() != n) {
+        throw InvalidArgument("level-set deviation: the sampler returned the wrong number of values");
+      }
+      Eigen::Index kept = 0;
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const Eigen::RowVector3d g = gradients.row(i);
+        const double g2 = g.squaredNorm();
+        const double remaining = g2 > 0.0 ? std::abs(values[i] - iso) / std::sqrt(g2) : HUGE_VAL;
+        // Converged (to float32 noise in f, or to a negligible first-order rest): the path plus the rest.
+        if (remaining <= 1e-5 * side || std::abs(values[i] - iso) <= 1e-6 * side) {
+          e[static_cast<std::size_t>(active[static_cast<std::size_t>(i)])] =
+              (x.row(i) - start.row(i)).norm() + std::min(remaining, 1e-5 * side);
+          ++d.refinedSamples;
+          continue;
+        }
+        if (step == kSteps || !(g2 > 0.0)) continue;  // not converged: the first-order value stays
+        Eigen::RowVector3d move = -(values[i] - iso) / g2 * g;
+        const double len = move.norm(), cap = 0.01 * side;
+        if (len > cap) move *= cap / len;
+        active[static_cast<std::size_t>(kept)] = active[static_cast<std::size_t>(i)];
+        x.row(kept) = x.row(i) + move;
+        start.row(kept) = start.row(i);
+        ++kept;
+      }
+      active.resize(static_cast<std::size_t>(kept));
+      x.conservativeResize(kept, 3);
+      start.conservativeResize(kept, 3);
+    }
+  }
+  double sum = 0.0, sum2 = 0.0;
+  std::vector<double> kept;
+  kept.reserve(e.size());
+  for (Eigen::Index s = 0; s < total; ++s) {
+    const double v = e[static_cast<std::size_t>(s)];
+    if (v < 0.0) {
+      ++d.flatSamples;
+      continue;
+    }
+    kept.push_back(v);
+    sum += v;
+    sum2 += v * v;
+    d.aboveLimit += v > d.limit ? 1 : 0;
+    if (v > d.max) {
+      d.max = v;
+      d.maxAt = sample(s).transpose();
+    }
+  }
+  d.samples = kept.size();
+  if (d.samples > 0) {
+    d.mean = sum / static_cast<double>(d.samples);
+    d.rms = std::sqrt(sum2 / static_cast<double>(d.samples));
+    const auto rank = [&](double q) {
+      const auto k = std::min(kept.size() - 1, static_cast<std::size_t>(std::ceil(q * static_cast<double>(kept.size()))) - 1);
+      std::nth_element(kept.begin(), kept.begin() + static_cast<std::ptrdiff_t>(k), kept.end());
+      return kept[k];
+    };
+    d.p999 = rank(0.999);
+    d.p99 = rank(0.99);
+  }
+  d.relativeMax = side > 0.0 ? d.max / side : 0.0;
+  d.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - startTime).count();
+  return d;
+}
+
+LevelSetDeviation levelSetDeviation(const FieldEvaluator& evaluator, const ImplicitField& field, const Mesh& mesh,
+                                    double iso, std::size_t maxSamples) {
+  const FieldGradientSampler sampler = [&evaluator](const Points& q, Eigen::VectorXd& values, Points& gradients) {
+    FieldSamples s = evaluator.evaluate(q, FieldDerivatives::Gradient);
+    values = std::move(s.values);
+    gradients = std::move(s.gradients);
+  };
+  return levelSetDeviation(sampler, mesh, iso, field.bounds().sizes().maxCoeff(), maxSamples);
+}
+
+void validateFinishOptions(const MeshFinishOptions& options) {
+  if (!(options.collapseFraction >= 0.0 && options.collapseFraction <= 0.5)) {
+    throw InvalidArgument("mesh cleaning: the collapse fraction must be in [0, 0.5] (of the grid cell)");
+  }
+  if (!(options.simplify.maxError >= 0.0) || !std::isfinite(options.simplify.maxError)) {
+    throw InvalidArgument("simplification: the error bound (--max-error) must be a finite number >= 0");
+  }
+  if ((options.simplify.maxTriangles > 0 || options.simplify.maxError > 0.0) && !simplificationAvailable()) {
+    throw InvalidArgument("mesh simplification (--max-triangles, --max-error) needs meshoptimizer, and this build "
+                          "of duplexfit has none (install libmeshoptimizer-dev and configure again)");
+  }
+}
+
+namespace {
+
+/// The counts of a second cleaning added to the first's; the result's statistics from the second.
+void addClean(CleanReport& into, const CleanReport& more) {
+  into.collapses += more.collapses;
+  into.refusedTopology += more.refusedTopology;
+  into.refusedGeometry += more.refusedGeometry;
+  into.flips += more.flips;
+  into.verticesAfter = more.verticesAfter;
+  into.facesAfter = more.facesAfter;
+  into.float32DegenerateAfter = more.float32DegenerateAfter;
+  into.sliversAfter = more.sliversAfter;
+  into.minAngleAfter = more.minAngleAfter;
+  into.shortestEdgeAfter = more.shortestEdgeAfter;
+  into.seconds += more.seconds;
+}
+
+}  // namespace
+
+FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField& field, std::vector<Mesh> meshes,
+                            const std::vector<double>& isoValues, double cell, const MeshFinishOptions& options,
+                            Interrupter* interrupter) {
+  const auto start = std::chrono::steady_clock::now();
+  validateFinishOptions(options);
+  if (meshes.size() != isoValues.size()) {
+    throw InvalidArgument("finishSurfaces: " + std::to_string(meshes.size()) + " meshes but " +
+                          std::to_string(isoValues.size()) + " iso values");
+  }
+  if (!(cell > 0.0) || !std::isfinite(cell)) throw InvalidArgument("finishSurfaces: the cell must be positive");
+  CleanOptions clean;
+  clean.collapseLength = options.collapseFraction * cell;
+  FinishResult out;
+  for (std::size_t i = 0; i < meshes.size(); ++i) {
+    if (interrupter && interrupter->wasInterrupted(static_cast<int>(100 * i / meshes.size()))) {
+      throw Cancelled("cancelled while finishing the meshes");
+    }
+    const auto t = std::chrono::steady_clock::now();
+    MeshFinishReport rep;
+    Mesh mesh = std::move(meshes[i]);
+    if (mesh.faces.rows() == 0) {  // nothing extracted at this level: nothing to clean or measure
+      out.meshes.push_back(std::move(mesh));
+      out.reports.push_back(rep);
+      continue;
+    }
+    if (options.clean) {
+      CleanResult c = cleanMesh(mesh, clean);
+      mesh = std::move(c.mesh);
+      rep.clean = c.report;
+    }
+    SimplifyResult s = simplifyMesh(mesh, options.simplify);
+    rep.simplify = s.report;
+    if (s.report.applied && s.report.facesAfter != s.report.facesBefore) {
+      mesh = std::move(s.mesh);
+      if (options.clean) {
+        CleanResult c = cleanMesh(mesh, clean);
+        mesh = std::move(c.mesh);
+        addClean(rep.clean, c.report);
+      }
+    }
+    if (options.measureDeviation) {
+      rep.deviation = levelSetDeviation(evaluator, field, mesh, isoValues[i], options.deviationSamples);
+      rep.deviationMeasured = true;
+    }
+    rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+    out.meshes.push_back(std::move(mesh));
+    out.reports.push_back(rep);
+  }
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+}  // namespace duplexfit

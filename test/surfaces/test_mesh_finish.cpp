@@ -1,0 +1,294 @@
+// The pipelines' finishing of level-set meshes: cleaning a marching-tetrahedra sphere (watertight, no
+// float32-degenerate triangle, also after an STL round trip), the default cell without the δ term and the
+// deviation bound on a radial field whose level sets are spheres, and simplification under a budget
+// (skipped with a message in a build without meshoptimizer).
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/field.hpp"
+#include "duplexfit/io.hpp"
+#include "duplexfit/measure.hpp"
+#include "duplexfit/mesh_finish.hpp"
+#include "duplexfit/polygonize.hpp"
+#include "duplexfit/surfaces.hpp"
+#include "skip.hpp"
+#include "surfaces/collapse.hpp"
+#include "temp_dir.hpp"
+
+namespace {
+
+using namespace duplexfit;
+
+/// f = r − |x − c| sampled on the grid, and its mesh.
+Mesh sphereMesh(const Eigen::Vector3d& c, double r, double cell, double iso = 0.0) {
+  const GridSpec grid = GridSpec::fromCellSize(
+      Eigen::AlignedBox3d(c - Eigen::Vector3d::Constant(r + 4 * cell), c + Eigen::Vector3d::Constant(r + 4 * cell)),
+      cell);
+  const FieldSampler sampler = [c, r](const Points& q, Eigen::VectorXd& v) {
+    v.resize(q.rows());
+    for (Eigen::Index i = 0; i < q.rows(); ++i) v[i] = r - (q.row(i).transpose() - c).norm();
+  };
+  return polygonize(sampler, grid, {iso}).meshes[0];
+}
+
+/// max ||v − c| − r| over the vertices.
+double radialError(const Mesh& m, const Eigen::Vector3d& c, double r) {
+  double e = 0.0;
+  for (Eigen::Index v = 0; v < m.vertices.rows(); ++v) {
+    e = std::max(e, std::abs((m.vertices.row(v).transpose() - c).norm() - r));
+  }
+  return e;
+}
+
+/// Moves the far end of the mesh's shortest edge to within 1e-10 of its length from the near end: in
+/// float32 the two are then one point (at coordinates of a few hundred).
+Mesh withCoincidingPair(Mesh m) {
+  double best = 1e300;
+  std::int32_t a = -1, b = -1;
+  for (Eigen::Index f = 0; f < m.faces.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const std::int32_t p = m.faces(f, k), q = m.faces(f, (k + 1) % 3);
+      const double len = (m.vertices.row(p) - m.vertices.row(q)).norm();
+      if (len < best) {
+        best = len;
+        a = p;
+        b = q;
+      }
+    }
+  }
+  m.vertices.row(b) = m.vertices.row(a) + 1e-10 * (m.vertices.row(b) - m.vertices.row(a));
+  return m;
+}
+
+/// A field of one Wendland bump, f(x) = −0.5 + φ(|x|/2): radial, so its level sets are spheres (f = 0 at
+/// |x| ≈ 0.627), |∇f| ≈ 1 there, like a distance.
+ImplicitField radialField(double finestSigma = 2.0) {
+  FieldLevel level;
+  level.sigma = finestSigma;
+  level.centres = Points::Zero(1, 3);
+  level.weights = Eigen::VectorXd::Ones(1);
+  const Eigen::AlignedBox3d bounds(Eigen::Vector3d::Constant(-0.7), Eigen::Vector3d::Constant(0.7));
+  return ImplicitField(Normalization{}, -0.5, {level}, {}, bounds);
+}
+
+}  // namespace
+
+TEST_SUITE("surfaces") {
+
+TEST_CASE("cleaning keeps a marching-tetrahedra sphere watertight and removes every float32-degenerate triangle") {
+  // Far from the origin (float32 spacing 3e-5) and with grid nodes exactly on the sphere, so that many
+  // crossings sit next to the nodes.
+  const Eigen::Vector3d c(300.0, -200.0, 100.0);
+  const double cell = 0.05, r = 0.5;
+  const Mesh raw = withCoincidingPair(sphereMesh(c, r, cell));
+  const TriangleQuality before = triangleQuality(raw);
+  REQUIRE(before.float32DegenerateFaces >= 2);
+  MESSAGE("raw: " << before.faces << " faces, " << before.below1 << " / " << before.below5 << " / " << before.below10
+                   << " below 1/5/10 deg, min angle " << before.minAngle << ", shortest edge " << before.shortestEdge);
+  const MeshTopology rawTopology = analyzeTopology(raw);
+  REQUIRE(rawTopology.watertight());
+
+  CleanOptions options;
+  options.collapseLength = 0.1 * cell;
+  const CleanResult cleaned = cleanMesh(raw, options);
+  const CleanReport& rep = cleaned.report;
+  CHECK(rep.collapses > 0);
+  CHECK(rep.facesAfter < rep.facesBefore);
+  CHECK(rep.float32DegenerateBefore == before.float32DegenerateFaces);
+  CHECK(rep.float32DegenerateAfter == 0);
+  CHECK(rep.sliversAfter <= rep.sliversBefore);
+  CHECK(rep.minAngleAfter > rep.minAngleBefore);
+  CHECK(rep.lockedVertices == 0);
+  const MeshTopology t = analyzeTopology(cleaned.mesh);
+  CHECK(t.watertight());
+  CHECK(t.manifold());
+  CHECK(t.oriented());
+  CHECK(t.components == 1);
+  CHECK(t.eulerCharacteristic == 2);
+  const MeshCheck check = checkMesh(cleaned.mesh);
+  CHECK(check.quality.float32DegenerateFaces == 0);
+  CHECK(check.selfIntersections == 0);
+  CHECK(check.valid());
+  // The vertices stay on the sphere as well as the marching tetrahedra put them.
+  CHECK(radialError(cleaned.mesh, c, r) <= radialError(raw, c, r) + 1e-3 * cell);
+
+  // Written in float32 and read back (the STL reader welds identical corners): still valid.
+  const testing::TempDir dir;
+  writeMesh(dir.file("clean.stl"), cleaned.mesh);
+  const MeshCheck stl = checkMesh(readMesh(dir.file("clean.stl")));
+  CHECK(stl.quality.float32DegenerateFaces == 0);
+  CHECK(stl.valid());
+  writeMesh(dir.file("raw.stl"), raw);
+  CHECK_FALSE(checkMesh(readMesh(dir.file("raw.stl"))).valid());
+}
+
+TEST_CASE("cleaning: an open mesh keeps its boundary; bad options are rejected") {
+  Mesh m = sphereMesh(Eigen::Vector3d::Zero(), 0.5, 0.05);
+  // Cut the mesh open: drop every face with a vertex above z = 0.3.
+  std::vector<Eigen::Index> kept;
+  for (Eigen::Index f = 0; f < m.faces.rows(); ++f) {
+    bool low = true;
+    for (int k = 0; k < 3; ++k) low = low && m.vertices(m.faces(f, k), 2) < 0.3;
+    if (low) kept.push_back(f);
+  }
+  Mesh open = m;
+  open.faces.resize(static_cast<Eigen::Index>(kept.size()), 3);
+  for (std::size_t i = 0; i < kept.size(); ++i) open.faces.row(static_cast<Eigen::Index>(i)) = m.faces.row(kept[i]);
+  const MeshTopology before = analyzeTopology(open);
+  CleanOptions o;
+  o.collapseLength = 0.005;
+  const CleanResult r = cleanMesh(open, o);
+  CHECK(r.report.lockedVertices > 0);
+  const MeshTopology after = analyzeTopology(r.mesh);
+  CHECK(after.boundaryEdges == before.boundaryEdges);
+  CHECK(after.nonManifoldEdges == 0);
+  CHECK(after.manifold());
+  CHECK(after.oriented());
+  CHECK(after.eulerCharacteristic == before.eulerCharacteristic);
+  o.collapseLength = -1.0;
+  CHECK_THROWS_AS(cleanMesh(open, o), InvalidArgument);
+}
+
+TEST_CASE("the default cell does not depend on the offsets, and the meshes stay within 0.1% of the box") {
+  const ImplicitField field = radialField(0.02);  // σ_M/2 = 0.01, between side/512 and side/128
+  const double cell = surfaceGrid(field, {0.0}).cellSize().maxCoeff();
+  CHECK(cell == doctest::Approx(0.01));
+  for (const std::vector<double>& isos : std::vector<std::vector<double>>{{0.0, 0.005}, {0.0, 0.05}, {0.0, -0.02}}) {
+    CHECK(surfaceGrid(field, isos).cellSize().maxCoeff() == doctest::Approx(cell));
+  }
+  // A coarse finest level: the cell is capped at side/128, whatever δ.
+  const ImplicitField smooth = radialField(2.0);
+  const double side = smooth.bounds().sizes().maxCoeff();
+  CHECK(surfaceGrid(smooth, {0.0, 0.005}).cellSize().maxCoeff() == doctest::Approx(side / 128));
+
+  const FieldEvaluator evaluator(Device::reference(), smooth, Precision::Double);
+  const std::vector<double> isos = {0.0, 0.02};
+  SurfaceResult s = extractSurfaces(evaluator, smooth, isos);
+  const double gridCell = s.grid.cellSize().maxCoeff();
+  MeshFinishOptions full;
+  full.deviationSamples = 0;  // every vertex and face centre (the default measures a 100k stride)
+  const FinishResult f = finishSurfaces(evaluator, smooth, std::move(s.meshes), isos, gridCell, full);
+  REQUIRE(f.meshes.size() == 2);
+  for (std::size_t i = 0; i < 2; ++i) {
+    CAPTURE(i);
+    const MeshFinishReport& rep = f.reports[i];
+    CHECK(rep.clean.collapses > 0);
+    CHECK(rep.clean.float32DegenerateAfter == 0);
+    CHECK_FALSE(rep.simplify.applied);
+    REQUIRE(rep.deviationMeasured);
+    CHECK(rep.deviation.samples == static_cast<std::size_t>(f.meshes[i].vertices.rows() + f.meshes[i].faces.rows()));
+    CHECK(rep.deviation.side == doctest::Approx(side));
+    CHECK(rep.deviation.relativeMax <= 1e-3);
+    CHECK(rep.deviation.max > 0.0);
+    CHECK(analyzeTopology(f.meshes[i]).watertight());
+    // The first-order estimate agrees with the exact radial distance at the vertices.
+    const double radius = [&] {  // |x| where f = iso, by bisection on the radial profile
+      double lo = 0.0, hi = 2.0;
+      for (int it = 0; it < 100; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (smooth.value(Eigen::Vector3d(mid, 0, 0)) > isos[i] ? lo : hi) = mid;
+      }
+      return 0.5 * (lo + hi);
+    }();
+    CHECK(radialError(f.meshes[i], Eigen::Vector3d::Zero(), radius) <= rep.deviation.max * 1.05);
+    // Capped: an even stride of the samples, whose max cannot exceed the full measure's.
+    const LevelSetDeviation part = levelSetDeviation(evaluator, smooth, f.meshes[i], isos[i], 1000);
+    CHECK(part.candidates == rep.deviation.samples + rep.deviation.flatSamples);
+    CHECK(part.samples + part.flatSamples == 1000);
+    CHECK(part.max <= rep.deviation.max * (1.0 + 1e-9));
+    CHECK(part.mean == doctest::Approx(rep.deviation.mean).epsilon(0.5));
+    // The default stride (100k samples): its mean and p99 are estimates of the full measure's.
+    const LevelSetDeviation byDefault =
+        levelSetDeviation(evaluator, smooth, f.meshes[i], isos[i], MeshFinishOptions{}.deviationSamples);
+    CHECK(byDefault.samples + byDefault.flatSamples == std::min<std::size_t>(100000, part.candidates));
+    CHECK(byDefault.max <= rep.deviation.max * (1.0 + 1e-9));
+    CHECK(byDefault.mean == doctest::Approx(rep.deviation.mean).epsilon(0.05));
+    CHECK(byDefault.p99 == doctest::Approx(rep.deviation.p99).epsilon(0.1));
+  }
+}
+
+TEST_CASE("simplification without meshoptimizer is a clear error") {
+  if (simplificationAvailable()) DUPLEXFIT_SKIP("this build has meshoptimizer (the error cannot happen)");
+  const Mesh m = sphereMesh(Eigen::Vector3d::Zero(), 0.5, 0.05);
+  SimplifyOptions o;
+  CHECK(simplifyMesh(m, o).mesh.faces.rows() == m.faces.rows());  // nothing asked: nothing needed
+  o.maxTriangles = 100;
+  CHECK_THROWS_WITH_AS(simplifyMesh(m, o), doctest::Contains("meshoptimizer"), InvalidArgument);
+  MeshFinishOptions f;
+  f.simplify.maxError = 0.01;
+  CHECK_THROWS_WITH_AS(validateFinishOptions(f), doctest::Contains("meshoptimizer"), InvalidArgument);
+}
+
+TEST_CASE("simplification under a budget keeps the sphere closed and close") {
+  if (!simplificationAvailable()) DUPLEXFIT_SKIP("this build has no meshoptimizer: simplification is disabled");
+  const double r = 0.5;
+  const Mesh m = cleanMesh(sphereMesh(Eigen::Vector3d::Zero(), r, 0.025)).mesh;
+  REQUIRE(m.faces.rows() > 5000);
+  SimplifyOptions o;
+  o.maxTriangles = 2000;
+  const SimplifyResult s = simplifyMesh(m, o);
+  MESSAGE("meshoptimizer: " << s.report.duplicatePairsRemoved << " duplicate pairs removed, fallback " << s.report.fallback);
+  CHECK(s.report.applied);
+  CHECK(s.report.topologyKept);
+  CHECK(s.report.facesBefore == static_cast<std::size_t>(m.faces.rows()));
+  CHECK(s.report.facesAfter <= 2000);
+  CHECK(s.report.facesAfter > 1000);
+  CHECK(s.mesh.faces.rows() == static_cast<Eigen::Index>(s.report.facesAfter));
+  const MeshCheck c = checkMesh(s.mesh);
+  CHECK(c.watertight);
+  CHECK(c.manifold);
+  CHECK(c.genusKnown);
+  CHECK(c.genus == 0);
+  CHECK(c.selfIntersections == 0);
+  CHECK(radialError(s.mesh, Eigen::Vector3d::Zero(), r) < 0.01);
+  // An error bound alone: the simplifier stops at it.
+  SimplifyOptions bound;
+  bound.maxError = 1e-3;
+  const SimplifyResult b = simplifyMesh(m, bound);
+  CHECK(b.report.topologyKept);
+  CHECK(b.report.facesAfter < b.report.facesBefore);
+  CHECK((b.report.fallback || b.report.resultError <= 1e-3 * 1.01));
+  CHECK(radialError(b.mesh, Eigen::Vector3d::Zero(), r) < 3e-3);
+  bound.maxError = -1.0;
+  CHECK_THROWS_AS(simplifyMesh(m, bound), InvalidArgument);
+}
+
+TEST_CASE("the library's own edge-collapse simplifier keeps a sphere and a torus closed 2-manifolds") {
+  const Mesh sphere = sphereMesh(Eigen::Vector3d::Zero(), 0.5, 0.025);
+  const double R = 0.5, rt = 0.2, cell = 0.02;
+  const GridSpec grid = GridSpec::fromCellSize(
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.8, -0.8, -0.3), Eigen::Vector3d(0.8, 0.8, 0.3)), cell);
+  const FieldSampler ring = [R, rt](const Points& q, Eigen::VectorXd& v) {
+    v.resize(q.rows());
+    for (Eigen::Index i = 0; i < q.rows(); ++i) v[i] = rt - std::hypot(std::hypot(q(i, 0), q(i, 1)) - R, q(i, 2));
+  };
+  const Mesh torus = polygonize(ring, grid, {0.0}).meshes[0];
+  for (const Mesh* m : {&sphere, &torus}) {
+    const MeshTopology before = analyzeTopology(*m);
+    REQUIRE(before.watertight());
+    std::size_t collapses = 0;
+    const Mesh s = detail::collapseSimplify(*m, 1500, 0.0, &collapses);
+    CHECK(collapses > 0);
+    CHECK(s.faces.rows() <= 1500);
+    CHECK(s.faces.rows() >= 1400);
+    const MeshCheck c = checkMesh(s);
+    CHECK(c.watertight);
+    CHECK(c.manifold);
+    CHECK(c.oriented);
+    CHECK(c.topology.components == 1);
+    CHECK(c.topology.eulerCharacteristic == before.eulerCharacteristic);
+    CHECK(c.selfIntersections == 0);
+    CHECK(c.quality.float32DegenerateFaces == 0);
+  }
+  // An error bound alone stops the collapses before the surface moves farther than it.
+  const Mesh bounded = detail::collapseSimplify(sphere, 0, 1e-3);
+  CHECK(bounded.faces.rows() < sphere.faces.rows() / 2);
+  CHECK(radialError(bounded, Eigen::Vector3d::Zero(), 0.5) <= radialError(sphere, Eigen::Vector3d::Zero(), 0.5) + 1e-3);
+  CHECK(analyzeTopology(bounded).watertight());
+}
+
+}  // TEST_SUITE
