@@ -189,6 +189,8 @@ inline void addMeshFinishOptions(CLI::App& app, MeshFinishOptions& o) {
       ->type_name("N");
   addLength(app, "max-error", o.simplify.maxError, "simplify every mesh within E input units (meshoptimizer)");
   app.add_flag_callback("--no-clean", [&o] { o.clean = false; }, "keep slivers and float32-degenerate triangles");
+  app.add_flag_callback("--no-project", [&o] { o.project = false; },
+                        "leave the vertices where the grid put them (no projection onto the level set, no splits)");
   app.add_option_function<std::string>(
          "--deviation-samples",
          [&o](const std::string& v) {

@@ -13,6 +13,7 @@
 #include "duplexfit/field.hpp"
 #include "duplexfit/interrupter.hpp"
 #include "duplexfit/mesh.hpp"
+#include "duplexfit/resources.hpp"
 #include "duplexfit/types.hpp"
 
 namespace duplexfit {
@@ -141,6 +142,66 @@ LevelSetDeviation levelSetDeviation(const FieldEvaluator& evaluator, const Impli
                                     double iso, std::size_t maxSamples = 0);
 
 // ---------------------------------------------------------------------------------------------
+// Moving the mesh onto its level set
+
+struct ProjectOptions {
+  /// Faces whose centre is farther than this from the level set (input units; the length of its Newton
+  /// path onto it) have their longest edge split, the new vertex projected in turn. 0: vertices are
+  /// projected, no face is split.
+  double target = 0.0;
+  /// Split rounds at most (each round splits at most one edge per marked face, then projects the new
+  /// vertices and measures the faces they touch).
+  int rounds = 8;
+  /// The splits stop once the mesh has this many times its input's faces (or maxFaces, when set).
+  double maxGrowth = 1.25;
+  std::size_t maxFaces = 0;
+  /// A vertex is not moved farther than this (input units; 0: no cap): the extraction's vertices lie on
+  /// grid edges that cross the level set, so a longer path has left for another sheet.
+  double maxMove = 0.0;
+  /// A move is refused when a triangle around the vertex would turn by more than this many degrees from
+  /// its extracted normal, become float32-degenerate, or get a smallest angle below minAngle degrees
+  /// (unless it was already smaller).
+  double maxNormalChange = 80.0;
+  double minAngle = 1.0;
+  /// Afterwards, check the mesh for intersecting and float32-degenerate triangles (checkMesh) and move
+  /// the vertices around them back to the extracted surface until there are none (at most 12 rounds, the
+  /// last one moves every vertex back).
+  bool undoSelfIntersections = true;
+  /// The budget of that check.
+  ResourceLimits limits{};
+};
+
+struct ProjectReport {
+  bool applied = false;
+  std::size_t verticesBefore = 0, facesBefore = 0, verticesAfter = 0, facesAfter = 0;
+  std::size_t moved = 0;         ///< vertices moved onto the level set (extracted and new ones)
+  std::size_t partial = 0;       ///< of the moved ones, moved half or a quarter of the way (the whole way was refused)
+  std::size_t refused = 0;       ///< moves refused by the normal, angle or float32 checks
+  std::size_t notConverged = 0;  ///< Newton paths that did not reach the level set (or ran past maxMove)
+  std::size_t splits = 0;        ///< edges split
+  int rounds = 0;                ///< split rounds made
+  std::size_t markedLeft = 0;    ///< faces still beyond the target when the splits stopped
+  std::size_t selfIntersectionsFound = 0;  ///< intersecting triangle pairs after the moves, before the undo
+  std::size_t reverted = 0;      ///< vertices moved back to the extracted surface by the undo
+  double seconds = 0.0;
+};
+
+struct ProjectResult {
+  Mesh mesh;
+  ProjectReport report;
+};
+
+/// Moves every vertex of a mesh of {f = iso} onto the level set (Newton steps x ← x − (f − iso) ∇f/|∇f|²,
+/// at most 1% of `side` each, as levelSetDeviation), refusing moves that would fold or degenerate a
+/// triangle, then, while faces have their centre farther than options.target from the level set, splits
+/// their longest edge at its midpoint (both triangles of the edge: the mesh stays conforming) and projects
+/// the new vertex. Only edges with exactly two consistently oriented triangles are split, so a watertight,
+/// manifold, oriented mesh stays so, with the same components and Euler characteristic. Deterministic.
+/// @throws InvalidArgument for bad indices or options.
+ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh& mesh, double iso, double side,
+                                const ProjectOptions& options);
+
+// ---------------------------------------------------------------------------------------------
 // The pipelines' step
 
 struct MeshFinishOptions {
@@ -157,11 +218,17 @@ struct MeshFinishOptions {
   /// evaluation (plus Newton steps when it is not small): on fandisk_50k all 386k + 248k samples took
   /// 7 s, longer than the grid sampling; on fandisk_550k's 3.5M-triangle zero mesh all 5.3M took 25 s.
   std::size_t deviationSamples = 100000;
+  /// After cleaning and simplification, move the vertices onto the level set and split the faces whose
+  /// centre is farther than projectTarget · side from it (projectToLevelSet; side = the largest side of
+  /// the field's bounds). The splits stop at 1.25× the faces, or at the simplification's budget.
+  bool project = true;
+  double projectTarget = 5e-4;
 };
 
 struct MeshFinishReport {
   CleanReport clean;        ///< zero when cleaning is off
   SimplifyReport simplify;  ///< applied false without a budget or bound
+  ProjectReport project;    ///< applied false when projection is off
   bool deviationMeasured = false;
   LevelSetDeviation deviation;
   double seconds = 0.0;
@@ -177,8 +244,8 @@ struct FinishResult {
   double seconds = 0.0;
 };
 
-/// Cleans (collapse length = collapseFraction · cell), simplifies (when asked; then cleans again) and
-/// measures every mesh of {f = isoValues[i]} (meshes[i]) against `field` through `evaluator`.
+/// Cleans (collapse length = collapseFraction · cell), simplifies (when asked; then cleans again), projects
+/// onto the level set (when asked; moves capped at 3 cells) and measures every mesh of {f = isoValues[i]} (meshes[i]) against `field` through `evaluator`.
 /// @throws InvalidArgument (options, sizes), DeviceError, Cancelled (checked between meshes).
 FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField& field, std::vector<Mesh> meshes,
                             const std::vector<double>& isoValues, double cell, const MeshFinishOptions& options = {},

@@ -162,6 +162,9 @@ void logFinish(const std::string& name, const MeshFinishReport& r, const Progres
          << (r.simplify.fallback ? " (meshoptimizer changed the topology: by the library's own collapses)" : "")
          << (r.simplify.topologyKept ? "" : " (not: the topology changed)") << "; ";
   }
+  if (r.project.applied) {
+    line << r.project.moved << " vertices moved onto the level set, " << r.project.splits << " edges split; ";
+  }
   if (r.deviationMeasured) {
     line << "deviation from the level set " << r.deviation.max << " (" << 100.0 * r.deviation.relativeMax
          << "% of the largest side)";
@@ -656,6 +659,20 @@ ShellPipelineResult runShellPipeline(const Device& device, const ImplicitField& 
   r.extraction.meshes.clear();
   r.droppedZero = zero.dropped;
   r.droppedOffset = offset.dropped;
+  // The two surfaces finished as fit finishes them (cleaned, projected onto their level sets), so that
+  // `mesh --shell` and `fit --shell` join the same meshes.
+  progress.start("finish");
+  std::vector<Mesh> two;
+  two.push_back(std::move(zero.mesh));
+  two.push_back(std::move(offset.mesh));
+  FinishResult finished = finishSurfaces(evaluator, field, std::move(two), {0.0, delta},
+                                         r.extraction.grid.cellSize().maxCoeff(), surface.finish,
+                                         progress.interrupter());
+  zero.mesh = std::move(finished.meshes[0]);
+  offset.mesh = std::move(finished.meshes[1]);
+  logFinish("zero", finished.reports[0], progress);
+  logFinish("offset", finished.reports[1], progress);
+  progress.end();
   progress.start("shell");
   ShellOptions so = options;
   so.minCavityFraction = offsetFraction;

@@ -113,6 +113,22 @@ void addFinishReport(Json& m, const MeshFinishReport& f) {
                              {"fallback", s.fallback},
                              {"topology_kept", s.topologyKept},
                              {"seconds", s.seconds}};
+  const ProjectReport& p = f.project;
+  m["projection"] = Json{{"applied", p.applied},
+                         {"faces_before", p.facesBefore},
+                         {"faces_after", p.facesAfter},
+                         {"vertices_before", p.verticesBefore},
+                         {"vertices_after", p.verticesAfter},
+                         {"moved", p.moved},
+                         {"partial", p.partial},
+                         {"refused", p.refused},
+                         {"not_converged", p.notConverged},
+                         {"splits", p.splits},
+                         {"rounds", p.rounds},
+                         {"faces_left_beyond_target", p.markedLeft},
+                         {"self_intersections_found", p.selfIntersectionsFound},
+                         {"reverted", p.reverted},
+                         {"seconds", p.seconds}};
   Json deviation;  // null when not measured
   if (f.deviationMeasured) {
     const LevelSetDeviation& d = f.deviation;

@@ -8,6 +8,7 @@
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/mesh_finish.hpp"
+#include "newton.hpp"
 
 namespace duplexfit {
 
@@ -27,7 +28,59 @@ void firstOrder(const FieldGradientSampler& sampler, const Points& queries, doub
   }
 }
 
+/// f and ∇f through a field's evaluator.
+FieldGradientSampler gradientSampler(const FieldEvaluator& evaluator) {
+  return [&evaluator](const Points& q, Eigen::VectorXd& values, Points& gradients) {
+    FieldSamples s = evaluator.evaluate(q, FieldDerivatives::Gradient);
+    values = std::move(s.values);
+    gradients = std::move(s.gradients);
+  };
+}
+
 }  // namespace
+
+void detail::newtonPaths(const FieldGradientSampler& sampler, Points& x, double iso, double side,
+                         std::vector<char>& converged, std::vector<double>& rest, int steps) {
+  const Eigen::Index total = x.rows();
+  converged.assign(static_cast<std::size_t>(total), 0);
+  rest.assign(static_cast<std::size_t>(total), 0.0);
+  std::vector<Eigen::Index> active(static_cast<std::size_t>(total));
+  for (Eigen::Index i = 0; i < total; ++i) active[static_cast<std::size_t>(i)] = i;
+  Points at = x;  // the positions of the active paths, in the order of `active`
+  Eigen::VectorXd values;
+  Points gradients;
+  // Each step evaluates only the paths that have not converged yet (most take two or three steps).
+  for (int step = 0; step <= steps && !active.empty(); ++step) {
+    const auto n = static_cast<Eigen::Index>(active.size());
+    sampler(at, values, gradients);
+    if (values.size() != n || gradients.rows() != n) {
+      throw InvalidArgument("level-set deviation: the sampler returned the wrong number of values");
+    }
+    Eigen::Index kept = 0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const Eigen::Index id = active[static_cast<std::size_t>(i)];
+      const Eigen::RowVector3d g = gradients.row(i);
+      const double g2 = g.squaredNorm();
+      const double remaining = g2 > 0.0 ? std::abs(values[i] - iso) / std::sqrt(g2) : HUGE_VAL;
+      x.row(id) = at.row(i);
+      // Converged (to float32 noise in f, or to a negligible first-order rest).
+      if (remaining <= 1e-5 * side || std::abs(values[i] - iso) <= 1e-6 * side) {
+        converged[static_cast<std::size_t>(id)] = 1;
+        rest[static_cast<std::size_t>(id)] = std::min(remaining, 1e-5 * side);
+        continue;
+      }
+      if (step == steps || !(g2 > 0.0)) continue;  // not converged
+      Eigen::RowVector3d move = -(values[i] - iso) / g2 * g;
+      const double len = move.norm(), cap = 0.01 * side;
+      if (len > cap) move *= cap / len;
+      active[static_cast<std::size_t>(kept)] = id;
+      at.row(kept) = at.row(i) + move;
+      ++kept;
+    }
+    active.resize(static_cast<std::size_t>(kept));
+    at.conservativeResize(kept, 3);
+  }
+}
 
 LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const Mesh& mesh, double iso, double side,
                                     std::size_t maxSamples) {
@@ -59,51 +112,24 @@ LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const M
     firstOrder(sampler, queries, iso, e.data() + begin);
   }
   // Newton paths for the samples whose first-order distance is not small.
-  constexpr int kSteps = 10;
   std::vector<Eigen::Index> refine;
   for (Eigen::Index s = 0; s < total; ++s) {
     if (e[static_cast<std::size_t>(s)] > 0.25 * d.limit) refine.push_back(s);
   }
+  std::vector<char> converged;
+  std::vector<double> rest;
   for (std::size_t begin = 0; begin < refine.size(); begin += static_cast<std::size_t>(kChunk)) {
     const std::size_t end = std::min(refine.size(), begin + static_cast<std::size_t>(kChunk));
-    std::vector<Eigen::Index> active(refine.begin() + static_cast<std::ptrdiff_t>(begin),
-                                     refine.begin() + static_cast<std::ptrdiff_t>(end));
-    Points start(static_cast<Eigen::Index>(active.size()), 3);
-    for (std::size_t i = 0; i < active.size(); ++i) start.row(static_cast<Eigen::Index>(i)) = sample(active[i]);
+    const auto n = static_cast<Eigen::Index>(end - begin);
+    Points start(n, 3);
+    for (Eigen::Index i = 0; i < n; ++i) start.row(i) = sample(refine[begin + static_cast<std::size_t>(i)]);
     Points x = start;
-    Eigen::VectorXd values;
-    Points gradients;
-    // Each step evaluates only the paths that have not converged yet (most take two or three steps).
-    for (int step = 0; step <= kSteps && !active.empty(); ++step) {
-      const auto n = static_cast<Eigen::Index>(active.size());
-      sampler(x, values, gradients);
-      if (values.size() != n || gradients.rows() != n) {
-        throw InvalidArgument("level-set deviation: the sampler returned the wrong number of values");
-      }
-      Eigen::Index kept = 0;
-      for (Eigen::Index i = 0; i < n; ++i) {
-        const Eigen::RowVector3d g = gradients.row(i);
-        const double g2 = g.squaredNorm();
-        const double remaining = g2 > 0.0 ? std::abs(values[i] - iso) / std::sqrt(g2) : HUGE_VAL;
-        // Converged (to float32 noise in f, or to a negligible first-order rest): the path plus the rest.
-        if (remaining <= 1e-5 * side || std::abs(values[i] - iso) <= 1e-6 * side) {
-          e[static_cast<std::size_t>(active[static_cast<std::size_t>(i)])] =
-              (x.row(i) - start.row(i)).norm() + std::min(remaining, 1e-5 * side);
-          ++d.refinedSamples;
-          continue;
-        }
-        if (step == kSteps || !(g2 > 0.0)) continue;  // not converged: the first-order value stays
-        Eigen::RowVector3d move = -(values[i] - iso) / g2 * g;
-        const double len = move.norm(), cap = 0.01 * side;
-        if (len > cap) move *= cap / len;
-        active[static_cast<std::size_t>(kept)] = active[static_cast<std::size_t>(i)];
-        x.row(kept) = x.row(i) + move;
-        start.row(kept) = start.row(i);
-        ++kept;
-      }
-      active.resize(static_cast<std::size_t>(kept));
-      x.conservativeResize(kept, 3);
-      start.conservativeResize(kept, 3);
+    detail::newtonPaths(sampler, x, iso, side, converged, rest);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (!converged[static_cast<std::size_t>(i)]) continue;  // not converged: the first-order value stays
+      e[static_cast<std::size_t>(refine[begin + static_cast<std::size_t>(i)])] =
+          (x.row(i) - start.row(i)).norm() + rest[static_cast<std::size_t>(i)];
+      ++d.refinedSamples;
     }
   }
   double sum = 0.0, sum2 = 0.0;
@@ -143,11 +169,7 @@ LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const M
 
 LevelSetDeviation levelSetDeviation(const FieldEvaluator& evaluator, const ImplicitField& field, const Mesh& mesh,
                                     double iso, std::size_t maxSamples) {
-  const FieldGradientSampler sampler = [&evaluator](const Points& q, Eigen::VectorXd& values, Points& gradients) {
-    FieldSamples s = evaluator.evaluate(q, FieldDerivatives::Gradient);
-    values = std::move(s.values);
-    gradients = std::move(s.gradients);
-  };
+  const FieldGradientSampler sampler = gradientSampler(evaluator);
   return levelSetDeviation(sampler, mesh, iso, field.bounds().sizes().maxCoeff(), maxSamples);
 }
 
@@ -157,6 +179,9 @@ void validateFinishOptions(const MeshFinishOptions& options) {
   }
   if (!(options.simplify.maxError >= 0.0) || !std::isfinite(options.simplify.maxError)) {
     throw InvalidArgument("simplification: the error bound (--max-error) must be a finite number >= 0");
+  }
+  if (!(options.projectTarget >= 0.0) || !std::isfinite(options.projectTarget)) {
+    throw InvalidArgument("projection onto the level set: the target must be a finite fraction >= 0 of the side");
   }
   if ((options.simplify.maxTriangles > 0 || options.simplify.maxError > 0.0) && !simplificationAvailable()) {
     throw InvalidArgument("mesh simplification (--max-triangles, --max-error) needs meshoptimizer, and this build "
@@ -195,6 +220,7 @@ FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField
   if (!(cell > 0.0) || !std::isfinite(cell)) throw InvalidArgument("finishSurfaces: the cell must be positive");
   CleanOptions clean;
   clean.collapseLength = options.collapseFraction * cell;
+  const FieldGradientSampler sampler = gradientSampler(evaluator);
   FinishResult out;
   for (std::size_t i = 0; i < meshes.size(); ++i) {
     if (interrupter && interrupter->wasInterrupted(static_cast<int>(100 * i / meshes.size()))) {
@@ -222,6 +248,16 @@ FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField
         mesh = std::move(c.mesh);
         addClean(rep.clean, c.report);
       }
+    }
+    if (options.project) {
+      const double side = field.bounds().sizes().maxCoeff();
+      ProjectOptions po;
+      po.target = options.projectTarget * side;
+      po.maxMove = 3.0 * cell;
+      po.maxFaces = options.simplify.maxTriangles;
+      ProjectResult p = projectToLevelSet(sampler, mesh, isoValues[i], side, po);
+      mesh = std::move(p.mesh);
+      rep.project = p.report;
     }
     if (options.measureDeviation) {
       rep.deviation = levelSetDeviation(evaluator, field, mesh, isoValues[i], options.deviationSamples);

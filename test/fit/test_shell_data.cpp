@@ -143,7 +143,9 @@ TEST_SUITE("fit") {
     const ShellReport& d = result.shell->report;
     checkSolid(d);
     CHECK_FALSE(d.drainHoles.empty());
-    CHECK(d.volume < reference);
+    // The holes take material away: less than the same g' meshed without holes (the joined shell's
+    // meshes are projected onto their level sets, g' is meshed by marching tetrahedra alone).
+    CHECK(d.volume < direct.volume);
     MESSAGE("maxplanck_12k drained (auto): " << d.drainHoles.size() << " hole(s), " << d.topology.components
                                              << " component(s), volume " << d.volume << " ("
                                              << d.relativeDifference() << ")");

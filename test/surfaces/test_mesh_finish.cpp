@@ -292,3 +292,84 @@ TEST_CASE("the library's own edge-collapse simplifier keeps a sphere and a torus
 }
 
 }  // TEST_SUITE
+
+namespace {
+
+/// The sampler of f = r − |x − c| with its gradient −(x − c)/|x − c|.
+FieldGradientSampler sphereSampler(const Eigen::Vector3d& c, double r) {
+  return [c, r](const Points& q, Eigen::VectorXd& v, Points& g) {
+    v.resize(q.rows());
+    g.resize(q.rows(), 3);
+    for (Eigen::Index i = 0; i < q.rows(); ++i) {
+      const Eigen::Vector3d d = q.row(i).transpose() - c;
+      v[i] = r - d.norm();
+      g.row(i) = -d.transpose() / d.norm();
+    }
+  };
+}
+
+}  // namespace
+
+TEST_CASE("projection moves a coarse sphere onto its level set and splits it to the target") {
+  const Eigen::Vector3d c(0.1, -0.2, 0.3);
+  const double r = 0.5, cell = 0.1, iso = 0.05;  // a coarse grid: faces far off the sphere of radius r − iso
+  const Mesh m = cleanMesh(sphereMesh(c, r, cell, iso)).mesh;
+  const FieldGradientSampler sampler = sphereSampler(c, r);
+  const MeshTopology before = analyzeTopology(m);
+  const double side = 1.0;
+  const LevelSetDeviation d0 = levelSetDeviation(sampler, m, iso, side);
+  ProjectOptions o;
+  o.target = 2e-3;
+  o.maxGrowth = 100.0;
+  o.rounds = 20;
+  const ProjectResult p = projectToLevelSet(sampler, m, iso, side, o);
+  CAPTURE(d0.max);
+  CHECK(p.report.applied);
+  CHECK(p.report.moved > 0);
+  CHECK(p.report.splits > 0);
+  CHECK(p.report.facesAfter == p.report.facesBefore + 2 * p.report.splits);
+  CHECK(p.report.verticesAfter == p.report.verticesBefore + p.report.splits);
+  // Every vertex on the sphere of radius r − iso (to the Newton tolerance), except refused moves.
+  const double exact = r - iso;
+  CHECK(radialError(p.mesh, c, exact) <= 1e-4);
+  // Every face centre within the target: the sagitta of the split faces (measured exactly: radial).
+  double worstCentre = 0.0;
+  for (Eigen::Index f = 0; f < p.mesh.faces.rows(); ++f) {
+    const Eigen::Vector3d x = (p.mesh.vertices.row(p.mesh.faces(f, 0)) + p.mesh.vertices.row(p.mesh.faces(f, 1)) +
+                               p.mesh.vertices.row(p.mesh.faces(f, 2))).transpose() / 3.0;
+    worstCentre = std::max(worstCentre, std::abs((x - c).norm() - exact));
+  }
+  CHECK(worstCentre <= o.target * 1.01);
+  CHECK(d0.max > 3 * worstCentre);  // it was far worse before
+  const MeshTopology after = analyzeTopology(p.mesh);
+  CHECK(after.watertight());
+  CHECK(after.manifold());
+  CHECK(after.oriented());
+  CHECK(after.components == before.components);
+  CHECK(after.eulerCharacteristic == before.eulerCharacteristic);
+  CHECK(checkMesh(p.mesh).valid());
+  CHECK(signedVolume(p.mesh) > 0.0);
+
+  // Without a target: the vertices move, nothing is split. A face budget stops the splits.
+  ProjectOptions still;
+  const ProjectResult q = projectToLevelSet(sampler, m, iso, side, still);
+  CHECK(q.report.splits == 0);
+  CHECK(q.mesh.faces.rows() == m.faces.rows());
+  CHECK(radialError(q.mesh, c, exact) <= 1e-4);
+  ProjectOptions budget = o;
+  budget.maxFaces = static_cast<std::size_t>(m.faces.rows()) + 40;
+  const ProjectResult b = projectToLevelSet(sampler, m, iso, side, budget);
+  CHECK(b.mesh.faces.rows() <= m.faces.rows() + 40);
+  CHECK(b.report.markedLeft > 0);
+  // Deterministic.
+  const ProjectResult again = projectToLevelSet(sampler, m, iso, side, o);
+  CHECK(again.mesh.vertices == p.mesh.vertices);
+  CHECK(again.mesh.faces == p.mesh.faces);
+  // Bad options and indices.
+  ProjectOptions bad;
+  bad.target = -1.0;
+  CHECK_THROWS_AS(projectToLevelSet(sampler, m, iso, side, bad), InvalidArgument);
+  Mesh broken = m;
+  broken.faces(3, 1) = static_cast<std::int32_t>(m.vertices.rows());
+  CHECK_THROWS_WITH_AS(projectToLevelSet(sampler, broken, iso, side, o), doctest::Contains("face 3"), InvalidArgument);
+}

@@ -1,0 +1,18 @@
+// Newton paths onto a level set, shared by the deviation measure and the projection (lib/surfaces).
+#pragma once
+
+#include <vector>
+
+#include "duplexfit/mesh_finish.hpp"
+
+namespace duplexfit::detail {
+
+/// Moves each point of x towards {f = iso} by Newton steps x ← x − (f(x) − iso) ∇f/|∇f|², each at most
+/// 1% of `side`, evaluating only the paths still going. A path has converged when |f − iso| ≤ 1e-6·side or
+/// its first-order rest |f − iso|/|∇f| ≤ 1e-5·side; then converged[i] = 1 and rest[i] = min(rest, 1e-5·side).
+/// A path that has not converged after `steps` steps (or meets ∇f = 0) keeps converged[i] = 0 and the
+/// position it reached.
+void newtonPaths(const FieldGradientSampler& sampler, Points& x, double iso, double side, std::vector<char>& converged,
+                 std::vector<double>& rest, int steps = 10);
+
+}  // namespace duplexfit::detail
