@@ -10,7 +10,7 @@ cd "$(dirname "$0")/.."
 seconds="${1:-60}"
 [ $# -gt 0 ] && shift
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(fuzz_point_cloud fuzz_mesh fuzz_field fuzz_check_measure)
+[ ${#targets[@]} -gt 0 ] || targets=(fuzz_point_cloud fuzz_mesh fuzz_field fuzz_check_measure fuzz_cli_file)
 build="${DUPLEXFIT_FUZZ_BUILD:-build-fuzz}"
 cxx="${CXX:-clang++}"
 case "$cxx" in *clang*) ;; *) cxx=clang++ ;; esac

@@ -81,8 +81,6 @@ bool pointInPolygon(const Points2& p, double x, double y) {
 
 // ---- small public helpers ------------------------------------------------------------------------
 
-const char* sliceModeName(SliceMode mode) noexcept { return mode == SliceMode::Zero ? "zero" : "shell"; }
-
 SliceMode parseSliceMode(const std::string& text) {
   if (text == "zero") return SliceMode::Zero;
   if (text == "shell") return SliceMode::Shell;

@@ -15,6 +15,10 @@
 
 namespace duplexfit {
 
+// Here rather than in slice.cpp: the writers below use it, and the CLI-file reader's fuzz target links
+// this file without the slicer.
+const char* sliceModeName(SliceMode mode) noexcept { return mode == SliceMode::Zero ? "zero" : "shell"; }
+
 namespace {
 
 void appendFixed(std::string& out, double v) {
