@@ -163,8 +163,8 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
     for (std::size_t i = 0; i < list.size(); ++i) {
       const auto r = static_cast<Eigen::Index>(i);
       const double g = gradients.row(r).norm();
-      // Already on it to float32 noise, or at a flat point (left where it is).
-      if (!(g >= 1e-6) || std::abs(values[r] - iso) / g <= 1e-6 * side) continue;
+      // Within 1e-5 of the side already (1% of the deviation target), or at a flat point: left where it is.
+      if (!(g >= 1e-6) || std::abs(values[r] - iso) / g <= 1e-5 * side) continue;
       go.push_back(list[i]);
     }
     if (go.empty()) return;
