@@ -105,6 +105,10 @@ int cmdFit(int argc, char** argv) {
                  "system: the single-process fit's solution)")
       ->type_name("MODE")->group("Distributed (MPI)");
   addNumber(app, "halo", dist.halo, "local mode: halo of a block's system in supports sigma_k (default 4)")->group("Distributed (MPI)");
+  addInteger(app, "blocks", dist.blocks,
+             "fit by N spatial blocks solved one after another (out of core: about one block's system in memory "
+             "at a time; local mode); under mpirun the N blocks are shared by the ranks")
+      ->group("Distributed (MPI)");
   addInteger(app, "coarse-points", dist.coarsePoints,
              "levels with at most N level points are solved whole on every rank (default 8192)")
       ->group("Distributed (MPI)");
@@ -113,10 +117,15 @@ int cmdFit(int argc, char** argv) {
   if (!distributedMode.empty() && distributedMode != "local" && distributedMode != "exact") {
     throw UsageError("--distributed must be local or exact");
   }
-  if (distributedMode.empty() && (app.count("--halo") > 0 || app.count("--coarse-points") > 0) && !severalRanks) {
-    throw UsageError("--halo and --coarse-points apply to the distributed fit (--distributed local, or mpirun -np P)");
+  const bool blocked = app.count("--blocks") > 0;
+  if (blocked && dist.blocks < 1) throw UsageError("option --blocks must be at least 1");
+  if (blocked && distributedMode == "exact") {
+    throw UsageError("--blocks solves the blocks one after another (local mode): it does not combine with --distributed exact");
   }
-  const bool distributed = !distributedMode.empty() || severalRanks;
+  if (distributedMode.empty() && (app.count("--halo") > 0 || app.count("--coarse-points") > 0) && !severalRanks && !blocked) {
+    throw UsageError("--halo and --coarse-points apply to the distributed fit (--distributed local, --blocks N, or mpirun -np P)");
+  }
+  const bool distributed = !distributedMode.empty() || severalRanks || blocked;
   if (distributed && severalRanks && !mpiBuilt()) {
     throw UsageError("launched with several MPI ranks, but this duplexfit was built without MPI (install "
                      "libopenmpi-dev and rebuild): every rank would fit the whole cloud");

@@ -4,6 +4,10 @@
 // solves its block plus a halo of g·σ_k and keeps the weights of the centres it owns) or by distributed PCG
 // on the level's global system ("exact" mode: each rank holds the rows of its owned centres). The result
 // is ONE ImplicitField, held whole by every rank.
+//
+// Blocks (`--blocks N`, out of core): the same decomposition into N blocks, shared by the ranks (one
+// process: all N), each rank solving its blocks one after another, so that only one block's system is in
+// memory at a time. N blocks in one process give the field of N ranks (the same blocks, halos and rules).
 #pragma once
 
 #include <cstdint>
@@ -34,7 +38,12 @@ struct DistributedOptions {
   double halo = 4.0;
   /// A level with at most this many level points (all ranks) is gathered and solved on every rank.
   std::size_t coarsePoints = 8192;
-  /// P > 1: the sign anchors' winding number is that of a proxy cloud, the gathered cell centroids of the
+  /// Spatial blocks in all, shared by the ranks (0: one per rank). A rank solves its blocks one after
+  /// another, each a system of its own, so that the peak memory is about the input, the field and ONE
+  /// block's system: `duplexfit fit --blocks N` fits clouds whose single system would not fit in memory.
+  /// Local mode only when blocks ≠ ranks; at least one block per rank.
+  int blocks = 0;
+  /// P > 1 or several blocks: the sign anchors' winding number is that of a proxy cloud, the gathered cell centroids of the
   /// finest depth with at most this many cells (the whole cloud is on no rank).
   std::size_t windingPoints = 65536;
 };
@@ -55,20 +64,27 @@ struct DistributedLevelReport {
   double secondsSolve = 0.0;        ///< its solve (exact mode: the distributed PCG, waits included)
 };
 
+/// One block (with one block per rank: one rank).
 struct DistributedRankReport {
   int rank = 0;
-  std::size_t readRows = 0;         ///< rows of the file this rank read
+  int block = 0;                    ///< its index among all blocks (the rank's with one block per rank)
+  std::size_t readRows = 0;         ///< rows of the file its rank read (on the rank's first block; else 0)
   std::size_t points = 0;           ///< points it owns (after merging duplicates)
   std::uint64_t keyBegin = 0, keyEnd = 0;  ///< its Morton range [begin, end)
   std::vector<DistributedLevelReport> levels;
-  double secondsPartition = 0.0, secondsFit = 0.0;
-  std::uint64_t bytesReceived = 0;  ///< by the halo exchanges and gathers of the fit
+  double secondsPartition = 0.0;    ///< its rank's partition
+  double secondsFit = 0.0;          ///< its rank's whole fit (all of the rank's blocks)
+  std::uint64_t bytesReceived = 0;  ///< by its rank's halo exchanges and gathers (on the rank's first block)
+  /// The process's peak resident memory (getrusage) once this block's levels are solved: with blocks in
+  /// one process it shows whether the peak grows with the blocks solved.
+  std::uint64_t peakBytes = 0;
 };
 
 struct DistributedReport {
   DistributedMode mode = DistributedMode::Local;
   double halo = 4.0;
   int ranks = 1;
+  int blocks = 1;                   ///< blocks in all (≥ ranks)
   std::string communicator;
   std::size_t coarsePoints = 0;
   std::uint64_t fileRows = 0;       ///< the vertex rows of the input
@@ -79,21 +95,27 @@ struct DistributedReport {
   /// approximation where leaves straddle blocks.
   bool sigma0Approximate = false;
   std::size_t windingProxyPoints = 0;  ///< P > 1 with sign anchors: the proxy cloud's points
-  std::vector<DistributedRankReport> rankReports;  ///< every rank's, on every rank
+  std::vector<DistributedRankReport> rankReports;  ///< every block's (rank, then block order), on every rank
 };
 
 /// The owned points of this rank and the global facts the distributed fit needs.
 struct DistributedPoints {
-  PointSet points;                  ///< owned, in file-row order, duplicates merged
+  /// Owned, duplicates merged, block by block (the rank's blocks in order), in file-row order within a block.
+  PointSet points;
   Eigen::AlignedBox3d bounds;       ///< the whole input's bounding box
-  std::vector<std::uint64_t> splitters;  ///< the Morton ranges (hierarchy box of the normalised input)
+  std::vector<std::uint64_t> splitters;  ///< the ranks' Morton ranges (hierarchy box of the normalised input)
+  std::vector<std::uint64_t> blockSplitters;  ///< the blocks' Morton ranges (the ranks' when one block each)
+  int firstBlock = 0;               ///< this rank's first block
+  /// Rows of `points` of this rank's blocks: block firstBlock + j holds [blockRows[j], blockRows[j + 1]).
+  std::vector<Eigen::Index> blockRows;
 };
 
 /// Partition: each rank hands in its own rows of the file (rows [firstRow, firstRow + rows)); the global
-/// bounds come from a reduction, the Morton ranges from a histogram, and the rows move to their owners.
-/// Fills report's partition fields and this rank's entry. @throws InvalidArgument (no points anywhere).
+/// bounds come from a reduction, the Morton ranges of `blocks` blocks (0: one per rank) from a histogram,
+/// and the rows move to the rank holding their block. Fills report's partition fields and this rank's
+/// entries. @throws InvalidArgument (no points anywhere, fewer blocks than ranks).
 DistributedPoints partitionPoints(Communicator& comm, const PointSet& myRows, std::int64_t firstRow,
-                                  std::uint64_t fileRows, DistributedReport& report);
+                                  std::uint64_t fileRows, DistributedReport& report, int blocks = 0);
 
 /// The fit over the ranks: same options as fit() (offset correction unsupported); every rank gets the
 /// whole field; `report` gets the per-rank figures (gathered). `checkPoints` (if not null) receives a

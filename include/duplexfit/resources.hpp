@@ -23,6 +23,8 @@ struct ResourceLimits {
 
 /// Physical memory of the machine (sysconf(_SC_PHYS_PAGES) · page size); 0 when unknown.
 std::uint64_t physicalMemoryBytes();
+/// The process's peak resident memory so far (getrusage: ru_maxrss); 0 when unknown.
+std::uint64_t peakResidentBytes();
 /// 75% of the physical memory, at most the address-space limit (RLIMIT_AS) when one is set; 8 GiB when the
 /// physical memory is unknown.
 std::uint64_t defaultMaxMemoryBytes();

@@ -151,6 +151,37 @@ double detail::medianSpacing(const Eigen::VectorXd& areas) {
   return std::sqrt(std::max(0.0, a[a.size() / 2]));
 }
 
+SolverOptions detail::levelSolverOptions(const FitOptions& options, bool finest) {
+  SolverOptions so = options.solver;
+  if (so.absoluteTolerance == 0.0) so.absoluteTolerance = options.levelTolerance;
+  if (!finest && options.coarseTolerance > 0.0) so.relativeTolerance = options.coarseTolerance;
+  return so;
+}
+
+SolveStats detail::solveLevelSystem(const Device& device, const CsrMatrix& a, const Eigen::VectorXd& b,
+                                    const FitOptions& options, bool finest, Eigen::VectorXd& weights,
+                                    Interrupter* monitor) {
+  if (b.size() == 0) {
+    weights.resize(0);
+    SolveStats none;
+    none.converged = true;
+    none.reason = StopReason::Converged;
+    return none;
+  }
+  const DeviceCsr m = DeviceCsr::upload(device, a, options.precision);
+  const DeviceVector db = DeviceVector::upload(device, b, options.precision);
+  DeviceVector x(device, static_cast<std::size_t>(b.size()), options.precision);
+  std::unique_ptr<Preconditioner> pre;
+  if (options.preconditioner == PreconditionerKind::BlockJacobi) {
+    pre = std::make_unique<BlockJacobiPreconditioner>(device, a, options.precision, options.blockSize);
+  } else {
+    pre = std::make_unique<JacobiPreconditioner>(m);
+  }
+  const SolveStats stats = solveCg(m, db, x, levelSolverOptions(options, finest), pre.get(), monitor);
+  weights = x.download();
+  return stats;
+}
+
 namespace {
 
 // A level's report plus its solved weights (moved into the field).
@@ -307,26 +338,14 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
 
     t0 = Clock::now();
     report(interrupter, {FitStage::Solve, k, levels, 0, 0.0, std::to_string(lr.nonZeros) + " non-zeros"}, &work);
-    const DeviceCsr m = DeviceCsr::upload(device, a, options.precision);
-    const DeviceVector db = DeviceVector::upload(device, b, options.precision);
-    DeviceVector x(device, static_cast<std::size_t>(b.size()), options.precision);
-    SolverOptions so = options.solver;
-    if (so.absoluteTolerance == 0.0) so.absoluteTolerance = options.levelTolerance;
-    if (k < levels && options.coarseTolerance > 0.0) so.relativeTolerance = options.coarseTolerance;
-    std::unique_ptr<Preconditioner> pre;
-    if (options.preconditioner == PreconditionerKind::BlockJacobi) {
-      pre = std::make_unique<BlockJacobiPreconditioner>(device, a, options.precision, options.blockSize);
-    } else {
-      pre = std::make_unique<JacobiPreconditioner>(m);
-    }
     std::unique_ptr<LevelInterrupter> levelInterrupter;
     if (interrupter != nullptr) {
-      levelInterrupter = std::make_unique<LevelInterrupter>(*interrupter, k, levels, work, so.relativeTolerance);
+      levelInterrupter = std::make_unique<LevelInterrupter>(*interrupter, k, levels, work,
+                                                            detail::levelSolverOptions(options, k >= levels).relativeTolerance);
     }
-    lr.solve = solveCg(m, db, x, so, pre.get(), levelInterrupter.get());
+    lr.solve = detail::solveLevelSystem(device, a, b, options, k >= levels, lr.weights, levelInterrupter.get());
     if (lr.solve.reason == StopReason::Cancelled) throw Cancelled("fit cancelled during the level " + std::to_string(k) + " solve");
     lr.secondsSolve = secondsSince(t0);
-    lr.weights = x.download();
     return a;
   };
 

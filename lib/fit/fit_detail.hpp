@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 
 #include "duplexfit/fit.hpp"
+#include "duplexfit/linalg.hpp"
 
 namespace duplexfit::detail {
 
@@ -11,5 +12,14 @@ namespace duplexfit::detail {
 void checkFitOptions(const FitOptions& o);
 /// The typical sample spacing: the square root of the median point area.
 double medianSpacing(const Eigen::VectorXd& areas);
+
+/// A level's solver options: options.solver with the absolute tolerance levelTolerance (when it has none)
+/// and, below the finest level, the relative tolerance coarseTolerance.
+SolverOptions levelSolverOptions(const FitOptions& options, bool finest);
+/// Solves a level's system A w = b on the device as every level of a fit is solved: A and b uploaded in
+/// options.precision, the preconditioner of options, PCG with levelSolverOptions. An empty b is a
+/// converged solve with no weights. `monitor` (if not null) gets the solver's events.
+SolveStats solveLevelSystem(const Device& device, const CsrMatrix& a, const Eigen::VectorXd& b, const FitOptions& options,
+                            bool finest, Eigen::VectorXd& weights, Interrupter* monitor = nullptr);
 
 }  // namespace duplexfit::detail

@@ -7,10 +7,12 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <sstream>
 
 #include "duplexfit/distributed.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/neighbors.hpp"
+#include "duplexfit/resources.hpp"
 #include "duplexfit/timer.hpp"
 #include "duplexfit/wendland.hpp"
 #include "duplexfit/winding.hpp"
@@ -27,6 +29,8 @@ namespace duplexfit {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+constexpr int kMaxBlocks = 1 << 16;
 
 void notify(Interrupter* interrupter, FitStage stage, int k, int levels, const std::string& message) {
   if (interrupter == nullptr) return;
@@ -80,8 +84,14 @@ const char* distributedModeName(DistributedMode mode) noexcept {
 }
 
 DistributedPoints partitionPoints(Communicator& comm, const PointSet& myRows, std::int64_t firstRow,
-                                  std::uint64_t fileRows, DistributedReport& report) {
+                                  std::uint64_t fileRows, DistributedReport& report, int blocks) {
   const auto t = Clock::now();
+  const int ranks = comm.size();
+  const int nBlocks = blocks > 0 ? blocks : ranks;
+  if (blocks < 0 || nBlocks < ranks || nBlocks > kMaxBlocks) {
+    throw InvalidArgument("distributed fit: " + std::to_string(blocks) + " blocks for " + std::to_string(ranks) +
+                          " ranks: give between one block per rank and " + std::to_string(kMaxBlocks) + " blocks");
+  }
   // Global bounds by reduction.
   double lo[3] = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
                   std::numeric_limits<double>::infinity()};
@@ -101,7 +111,16 @@ DistributedPoints partitionPoints(Communicator& comm, const PointSet& myRows, st
   const Points u = normalise(myRows.positions(), frame.norm);
   std::vector<std::uint64_t> keys(static_cast<std::size_t>(u.rows()));
   for (Eigen::Index i = 0; i < u.rows(); ++i) keys[static_cast<std::size_t>(i)] = detail::mortonKey63(u.row(i).transpose(), frame.box);
-  out.splitters = detail::balancedSplitters(comm, keys);
+  // The blocks' Morton ranges; rank r holds the consecutive blocks [⌊rB/P⌋, ⌊(r+1)B/P⌋) (with one block per
+  // rank, the blocks are the ranks' ranges).
+  out.blockSplitters = detail::balancedSplitters(comm, keys, 18, nBlocks);
+  out.splitters.resize(static_cast<std::size_t>(ranks) + 1);
+  for (int r = 0; r <= ranks; ++r) {
+    out.splitters[static_cast<std::size_t>(r)] =
+        out.blockSplitters[static_cast<std::size_t>(detail::firstBlockOfRank(r, ranks, nBlocks))];
+  }
+  out.firstBlock = detail::firstBlockOfRank(comm.rank(), ranks, nBlocks);
+  const int localBlocks = detail::firstBlockOfRank(comm.rank() + 1, ranks, nBlocks) - out.firstBlock;
   std::vector<std::int64_t> ids(static_cast<std::size_t>(u.rows()));
   for (std::size_t i = 0; i < ids.size(); ++i) ids[i] = firstRow + static_cast<std::int64_t>(i);
   detail::OwnedRows owned =
@@ -118,20 +137,50 @@ DistributedPoints partitionPoints(Communicator& comm, const PointSet& myRows, st
   report.fileRows = fileRows;
   report.ownedRows = static_cast<std::uint64_t>(check[0]);
   report.ownedOnce = check[0] == n && check[1] == n * (n - 1) / 2 && check[2] == 0;
-  report.ranks = comm.size();
+  report.ranks = ranks;
+  report.blocks = nBlocks;
   report.communicator = comm.name();
 
   PointSet set = PointSet::fromNormalized(std::move(owned.positions), std::move(owned.normals));
   set.mergeDuplicates();  // exact duplicates share a key, so a rank merges all of its own
+  // Block by block, file order within a block (stable): the order of the ranks' points if each block were
+  // a rank, so that B blocks in one process reproduce B ranks.
+  std::vector<int> blockOf(set.size());
+  std::vector<Eigen::Index> count(static_cast<std::size_t>(localBlocks) + 1, 0);
+  {
+    const Points un = normalise(set.positions(), frame.norm);
+    for (Eigen::Index i = 0; i < un.rows(); ++i) {
+      const int b = detail::ownerOfKey(out.blockSplitters, detail::mortonKey63(un.row(i).transpose(), frame.box)) - out.firstBlock;
+      if (b < 0 || b >= localBlocks) throw InvalidArgument("distributed fit: a point outside its rank's blocks (internal error)");
+      blockOf[static_cast<std::size_t>(i)] = b;
+      ++count[static_cast<std::size_t>(b) + 1];
+    }
+  }
+  for (int b = 0; b < localBlocks; ++b) count[static_cast<std::size_t>(b) + 1] += count[static_cast<std::size_t>(b)];
+  out.blockRows = count;
+  if (localBlocks > 1) {
+    Points p(static_cast<Eigen::Index>(set.size()), 3), nrm(static_cast<Eigen::Index>(set.size()), 3);
+    std::vector<Eigen::Index> next(count.begin(), count.end() - 1);
+    for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(set.size()); ++i) {
+      const Eigen::Index to = next[static_cast<std::size_t>(blockOf[static_cast<std::size_t>(i)])]++;
+      p.row(to) = set.positions().row(i);
+      nrm.row(to) = set.normals().row(i);
+    }
+    set = PointSet::fromNormalized(std::move(p), std::move(nrm));
+  }
   out.points = std::move(set);
-  DistributedRankReport mine;
-  mine.rank = comm.rank();
-  mine.readRows = myRows.size();
-  mine.points = out.points.size();
-  mine.keyBegin = out.splitters[static_cast<std::size_t>(comm.rank())];
-  mine.keyEnd = out.splitters[static_cast<std::size_t>(comm.rank()) + 1];
-  mine.secondsPartition = secondsSince(t);
-  report.rankReports = {mine};
+  report.rankReports.clear();
+  for (int b = 0; b < localBlocks; ++b) {
+    DistributedRankReport mine;
+    mine.rank = comm.rank();
+    mine.block = out.firstBlock + b;
+    mine.readRows = b == 0 ? myRows.size() : 0;
+    mine.points = static_cast<std::size_t>(out.blockRows[static_cast<std::size_t>(b) + 1] - out.blockRows[static_cast<std::size_t>(b)]);
+    mine.keyBegin = out.blockSplitters[static_cast<std::size_t>(mine.block)];
+    mine.keyEnd = out.blockSplitters[static_cast<std::size_t>(mine.block) + 1];
+    mine.secondsPartition = secondsSince(t);
+    report.rankReports.push_back(mine);
+  }
   return out;
 }
 
@@ -147,11 +196,31 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
   const bool exact = dist.mode == DistributedMode::Exact;
   const PointSet& points = input.points;
 
+  // This rank's blocks: [firstBlock, firstBlock + localBlocks), rows blockRows of the points.
+  const int localBlocks = input.blockRows.size() >= 2 ? static_cast<int>(input.blockRows.size()) - 1 : 1;
+  const std::vector<Eigen::Index> blockRows =
+      input.blockRows.size() >= 2 ? input.blockRows : std::vector<Eigen::Index>{0, static_cast<Eigen::Index>(points.size())};
+  const std::vector<std::uint64_t>& blockSplitters = input.blockSplitters.empty() ? input.splitters : input.blockSplitters;
+  if (blockRows.back() != static_cast<Eigen::Index>(points.size()) ||
+      blockSplitters.size() < static_cast<std::size_t>(input.firstBlock + localBlocks) + 1) {
+    throw InvalidArgument("distributed fit: the points' blocks do not match the partition (internal error)");
+  }
+  const int parts = static_cast<int>(comm.allreduce(static_cast<std::int64_t>(localBlocks), ReduceOp::Sum));
+  if (exact && parts != ranks) {
+    throw InvalidArgument("distributed fit: exact mode solves one block per rank (" + std::to_string(parts) + " blocks on " +
+                          std::to_string(ranks) + " ranks); use --distributed local with --blocks");
+  }
+
   drep.mode = dist.mode;
   drep.halo = dist.halo;
   drep.coarsePoints = dist.coarsePoints;
-  DistributedRankReport mine = drep.rankReports.empty() ? DistributedRankReport{} : drep.rankReports.front();
-  mine.rank = me;
+  drep.blocks = parts;
+  std::vector<DistributedRankReport> mine(static_cast<std::size_t>(localBlocks));
+  for (int j = 0; j < localBlocks; ++j) {
+    if (static_cast<std::size_t>(j) < drep.rankReports.size()) mine[static_cast<std::size_t>(j)] = drep.rankReports[static_cast<std::size_t>(j)];
+    mine[static_cast<std::size_t>(j)].rank = me;
+    mine[static_cast<std::size_t>(j)].block = input.firstBlock + j;
+  }
   std::uint64_t bytes = 0;
 
   FitReport rep;
@@ -166,6 +235,23 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
   const detail::HierarchyBox& box = frame.box;
   const Points u = normalise(points.positions(), norm);
   const Points nu = options.normalsInward ? points.normals() : Points(-points.normals());
+  // f(positions, normals) for each of this rank's blocks: a rank of B blocks computes what B ranks would.
+  const auto forEachBlock = [&](const auto& f) {
+    if (localBlocks == 1) {
+      f(0, u, nu);
+      return;
+    }
+    for (int j = 0; j < localBlocks; ++j) {
+      const Eigen::Index b0 = blockRows[static_cast<std::size_t>(j)], n = blockRows[static_cast<std::size_t>(j) + 1] - b0;
+      f(j, Points(u.middleRows(b0, n)), Points(nu.middleRows(b0, n)));
+    }
+  };
+  // Σ over the blocks of their cell counts at depth d (cells that straddle blocks counted once per block).
+  const auto blockCellCount = [&](int d) {
+    std::int64_t cells = 0;
+    forEachBlock([&](int, const Points& pb, const Points& nb) { cells += static_cast<std::int64_t>(detail::cellSums(pb, nb, box, d).size()); });
+    return comm.allreduce(cells, ReduceOp::Sum);
+  };
   // Global ids of the owned points: the ranks' blocks in rank order (consistent on every rank, the file
   // order with one rank): every rank sorts what it holds by them, so a cell's sums run in one order.
   std::vector<std::int64_t> ids(static_cast<std::size_t>(u.rows()));
@@ -194,21 +280,23 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
   notify(interrupter, FitStage::Hierarchy, 0, 0, "building the octrees");
   const double sigma1 = options.alpha * box.diagonal;
   double octree[2] = {0.0, 0.0};
-  {
+  forEachBlock([&](int, const Points& pb, const Points&) {
+    double diagonals = 0.0;
     std::size_t leaves = 0;
-    detail::adaptiveOctreeSums(u, box, octree[0], leaves);
-    octree[1] = static_cast<double>(leaves);
-  }
+    detail::adaptiveOctreeSums(pb, box, diagonals, leaves);
+    octree[0] += diagonals;
+    octree[1] += static_cast<double>(leaves);
+  });
   comm.allreduce(octree, 2, ReduceOp::Sum);
   const double sigma0 = octree[1] == 0.0 ? 0.75 * box.diagonal : 0.75 * octree[0] / octree[1];
-  drep.sigma0Approximate = ranks > 1;
+  drep.sigma0Approximate = parts > 1;
   const int levels = options.levels > 0 ? options.levels : detail::levelCount(sigma1, sigma0);
   rep.sigma0 = sigma0 / norm.scale;
   rep.sigma1 = sigma1 / norm.scale;
   rep.levels = levels;
   rep.secondsHierarchy = secondsSince(t);
 
-  // Sign anchors: with one rank the winding number of the whole cloud (as fit()); with several, that of a
+  // Sign anchors: with one block the winding number of the whole cloud (as fit()); with several, that of a
   // proxy cloud every rank holds (the gathered centroids of a fine depth), on the gathered levels only.
   const int lastAnchorLevel = options.signAnchors ? levels - std::max(0, options.anchorSkipFinest) : 0;
   Points cloud, cloudNormals;  // the anchors' cloud (normalised, inward normals)
@@ -219,7 +307,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
   {
     // The proxy for the self-check and the anchors: the finest depth below M with few enough cells.
     for (int d = std::max(1, levels - 1); d >= 1; --d) {
-      const auto cells = comm.allreduce(static_cast<std::int64_t>(detail::cellSums(u, nu, box, d).size()), ReduceOp::Sum);
+      const std::int64_t cells = blockCellCount(d);
       if (static_cast<std::size_t>(cells) <= dist.windingPoints || d == 1) {
         proxyDepth = d;
         break;
@@ -227,14 +315,14 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
     }
   }
   detail::LevelPoints proxy;
-  if (ranks > 1 || checkPoints != nullptr) proxy = detail::gatheredCentroids(comm, u, nu, box, proxyDepth);
+  if (parts > 1 || checkPoints != nullptr) proxy = detail::gatheredCentroids(comm, u, nu, box, proxyDepth);
   if (checkPoints != nullptr) {
     *checkPoints = ((proxy.positions / norm.scale).rowwise() + norm.centre.transpose()).eval();
   }
   if (lastAnchorLevel >= 1) {
     t = Clock::now();
     notify(interrupter, FitStage::Hierarchy, 0, 0, "winding number");
-    if (ranks == 1) {
+    if (parts == 1) {
       cloud = u;
       cloudNormals = nu;
     } else {
@@ -255,29 +343,40 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
   std::vector<FieldLevel> fitted;
   auto evaluator = std::make_shared<FieldEvaluator>(device, norm, -1.0, options.precision);
   std::vector<Points> finestOffsetPoints(deltas.size());  // owned valid offset points of level M
+  // The local block of each owned point.
+  std::vector<int> blockOfRow(static_cast<std::size_t>(u.rows()), 0);
+  for (int j = 0; j < localBlocks; ++j) {
+    for (Eigen::Index i = blockRows[static_cast<std::size_t>(j)]; i < blockRows[static_cast<std::size_t>(j) + 1]; ++i) {
+      blockOfRow[static_cast<std::size_t>(i)] = j;
+    }
+  }
   for (int k = 1; k <= levels; ++k) {
     const auto levelStart = Clock::now();
     const std::uint64_t bytesBefore = bytes;
     LevelReport lr;
-    DistributedLevelReport dl;
-    lr.level = dl.level = k;
+    lr.level = k;
     const double sigma = sigma1 / std::pow(2.0, k - 1);
     lr.sigma = sigma / norm.scale;
+    std::vector<DistributedLevelReport> dls(static_cast<std::size_t>(localBlocks));
+    for (DistributedLevelReport& dl : dls) dl.level = k;
 
     t = Clock::now();
     notify(interrupter, FitStage::Constraints, k, levels, "");
-    // Gathered when the level has few points (all ranks together; cells counted per rank, an upper bound).
-    const std::int64_t levelPointsAll =
-        k < levels ? comm.allreduce(static_cast<std::int64_t>(detail::cellSums(u, nu, box, k).size()), ReduceOp::Sum)
-                   : static_cast<std::int64_t>(rep.inputPoints);
+    // Gathered when the level has few points (all blocks together; cells counted per block, an upper bound).
+    const std::int64_t levelPointsAll = k < levels ? blockCellCount(k) : static_cast<std::int64_t>(rep.inputPoints);
     const bool gathered = static_cast<std::size_t>(levelPointsAll) <= dist.coarsePoints;
-    dl.gathered = gathered;
+    for (DistributedLevelReport& dl : dls) dl.gathered = gathered;
 
-    detail::LevelPoints level;
-    std::vector<char> ownedPoint;     // per level point: this rank owns it
-    std::vector<char> inSystem;       // per level point: within g·σ_k of an owned one
+    // The rank's data: its points and (not gathered) the other ranks' points within the data radius, in
+    // id order. Exact mode keeps only the owned centres, whose constraints (validity tests within 2|δ| of
+    // a level point, merges, cells whole) need a margin, not a halo system: 2σ_k + 3 max|δ| + 2 cell
+    // diagonals. Local mode: (g + 1)σ_k + 2 max|δ| + one cell diagonal.
+    const double cellDiag = k < levels ? box.diagonal / std::pow(2.0, k) : 0.0;
+    const double radius = exact ? 2.0 * sigma + 3.0 * maxOffset + 2.0 * cellDiag
+                                : (dist.halo + 1.0) * sigma + 2.0 * maxOffset + cellDiag;
+    Points lp, ln;
+    std::vector<int> rowBlock;  // per row of lp: its local block, −1 for another rank's point
     if (gathered) {
-      level = k < levels ? detail::gatheredCentroids(comm, u, nu, box, k) : detail::LevelPoints{};
       if (k == levels) {
         // The whole cloud in the ranks' id order (the file order with one rank).
         const std::vector<double> pos = comm.allgather(std::vector<double>(u.data(), u.data() + u.size()));
@@ -286,40 +385,31 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
         const std::vector<std::int64_t> rows = comm.allgather(std::vector<std::int64_t>{static_cast<std::int64_t>(u.rows())});
         std::int64_t total = 0;
         for (const auto r : rows) total += r;
-        level.positions.resize(total, 3);
-        level.normals.resize(total, 3);
+        lp.resize(total, 3);
+        ln.resize(total, 3);
         std::size_t at = 0;
         Eigen::Index row = 0;
         for (const auto r : rows) {
           const Eigen::Map<const Points> p(pos.data() + at, r, 3), q(nrm.data() + at, r, 3);
-          level.positions.middleRows(row, r) = p;
-          level.normals.middleRows(row, r) = q;
+          lp.middleRows(row, r) = p;
+          ln.middleRows(row, r) = q;
           at += static_cast<std::size_t>(3 * r);
           row += r;
         }
         bytes += static_cast<std::uint64_t>(2 * pos.size() * sizeof(double));
       }
-      ownedPoint.assign(static_cast<std::size_t>(level.positions.rows()), 1);
-      inSystem = ownedPoint;
     } else {
-      // Input points of the other ranks within the data radius (cells of level k must be complete there).
-      // Exact mode keeps only the owned centres, whose constraints (validity tests within 2|δ| of a level
-      // point, merges, cells whole) need a margin, not a halo system: 2σ_k + 3 max|δ| + 2 cell diagonals.
-      const double cellDiag = k < levels ? box.diagonal / std::pow(2.0, k) : 0.0;
-      const double radius = exact ? 2.0 * sigma + 3.0 * maxOffset + 2.0 * cellDiag
-                                  : (dist.halo + 1.0) * sigma + 2.0 * maxOffset + cellDiag;
       detail::OwnedRows halo = detail::exchangeHalo(comm, u, nu, ids, box, radius);
-      dl.haloPoints = halo.ids.size();
       bytes += static_cast<std::uint64_t>(halo.ids.size()) * 56;
-      // Owned and halo points in id order.
       const auto n = static_cast<Eigen::Index>(u.rows() + halo.positions.rows());
       std::vector<std::pair<std::int64_t, Eigen::Index>> order;
       order.reserve(static_cast<std::size_t>(n));
       for (Eigen::Index i = 0; i < u.rows(); ++i) order.emplace_back(ids[static_cast<std::size_t>(i)], i);
       for (Eigen::Index i = 0; i < halo.positions.rows(); ++i) order.emplace_back(halo.ids[static_cast<std::size_t>(i)], u.rows() + i);
       std::sort(order.begin(), order.end());
-      Points lp(n, 3), ln(n, 3);
-      std::vector<char> ownedRow(static_cast<std::size_t>(n));
+      lp.resize(n, 3);
+      ln.resize(n, 3);
+      rowBlock.resize(static_cast<std::size_t>(n));
       for (Eigen::Index r = 0; r < n; ++r) {
         const Eigen::Index i = order[static_cast<std::size_t>(r)].second;
         const bool own = i < u.rows();
@@ -330,214 +420,275 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
           lp.row(r) = halo.positions.row(i - u.rows());
           ln.row(r) = halo.normals.row(i - u.rows());
         }
-        ownedRow[static_cast<std::size_t>(r)] = own ? 1 : 0;
+        rowBlock[static_cast<std::size_t>(r)] = own ? blockOfRow[static_cast<std::size_t>(i)] : -1;
       }
-      if (k < levels) {
-        level = detail::cellCentroids(lp, ln, box, k);
-        // A cell's point belongs to the rank whose Morton range holds the centroid.
-        ownedPoint.resize(static_cast<std::size_t>(level.positions.rows()));
-        for (Eigen::Index i = 0; i < level.positions.rows(); ++i) {
-          ownedPoint[static_cast<std::size_t>(i)] =
-              detail::ownerOfKey(input.splitters, detail::mortonKey63(level.positions.row(i).transpose(), box)) == me ? 1 : 0;
-        }
+    }
+
+    // The level's solve units: the whole level when gathered, else each of the rank's blocks in turn (its
+    // points, the data within the radius of them, its system; only one block's system exists at a time).
+    // Their owned centres and weights are packed (x, y, z, w) for the gather.
+    const int units = gathered ? 1 : localBlocks;
+    std::vector<double> packed;
+    double maxResidual = 0.0;
+    for (int j = 0; j < units; ++j) {
+      DistributedLevelReport& dl = dls[static_cast<std::size_t>(j)];
+      const int block = input.firstBlock + j;
+      const std::string unitName = units > 1 ? "block " + std::to_string(block + 1) + " of " + std::to_string(parts) + ": " : "";
+      const auto unitStart = Clock::now();
+      auto tu = unitStart;
+      if (units > 1) notify(interrupter, FitStage::Constraints, k, levels, unitName + "constraints");
+      detail::LevelPoints level;
+      std::vector<char> ownedPoint;  // per level point: this unit owns it
+      std::vector<char> inSystem;    // per level point: within g·σ_k of an owned one
+      if (gathered) {
+        level = k < levels ? detail::gatheredCentroids(comm, u, nu, box, k) : detail::LevelPoints{lp, ln};
+        ownedPoint.assign(static_cast<std::size_t>(level.positions.rows()), 1);
+        inSystem = ownedPoint;
       } else {
-        level = detail::LevelPoints{lp, ln};
-        ownedPoint = ownedRow;
-      }
-      // Level points within g·σ_k of an owned one are in the rank's system.
-      std::vector<Eigen::Index> ownedRows;
-      for (std::size_t i = 0; i < ownedPoint.size(); ++i) {
-        if (ownedPoint[i] != 0) ownedRows.push_back(static_cast<Eigen::Index>(i));
-      }
-      inSystem.assign(ownedPoint.size(), 0);
-      if (exact) {
-        inSystem = ownedPoint;  // the rank's rows of the global system: its owned centres
-      } else if (!ownedRows.empty()) {
-        const NeighborIndex ownedIndex(rowsOf(level.positions, ownedRows));
-        const NeighborLists nearest = ownedIndex.knnSearch(level.positions, 1);
-        for (std::size_t i = 0; i < inSystem.size(); ++i) {
-          if (nearest.offsets[i + 1] == nearest.offsets[i]) continue;
-          const auto j = static_cast<Eigen::Index>(nearest.indices[static_cast<std::size_t>(nearest.offsets[i])]);
-          const double d = (level.positions.row(static_cast<Eigen::Index>(i)) - level.positions.row(ownedRows[static_cast<std::size_t>(j)])).norm();
-          inSystem[i] = d <= dist.halo * sigma ? 1 : 0;
+        // The block's data: with one block per rank all the rank's rows, else those near the block's own.
+        std::vector<char> core(rowBlock.size());
+        for (std::size_t r = 0; r < rowBlock.size(); ++r) core[r] = rowBlock[r] == j ? 1 : 0;
+        Points bp, bn;
+        std::vector<char> ownedRow;
+        if (localBlocks == 1) {
+          bp = lp;
+          bn = ln;
+          ownedRow = core;
+        } else {
+          const std::vector<Eigen::Index> rows = detail::rowsNear(lp, core, box, radius);
+          bp = rowsOf(lp, rows);
+          bn = rowsOf(ln, rows);
+          ownedRow = rowsOf(core, rows);
         }
-      }
-    }
-    dl.levelPoints = static_cast<std::size_t>(level.positions.rows());
-
-    detail::ConstraintOptions co;
-    co.offsets = deltas;
-    co.offSurfaceDistance = sigma / 10.0;
-    co.offSurfaceSide = offSide;
-    co.validityTolerance = options.validityTolerance;
-    co.mergeDistance = options.mergeDistance * sigma;
-    co.dropZeroNormalPoints = options.dropZeroNormalPoints;
-    co.tangentSideTest = options.sideTest;
-    co.medial = options.medialConstraints;
-    detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals, co);
-    const Eigen::Index mergedCentres = c.centres.rows();
-    // The rank's system: the centres of the level points in it; anchors (with one rank, or gathered levels).
-    if (!gathered) {
-      std::vector<Eigen::Index> keep;
-      for (Eigen::Index r = 0; r < c.centres.rows(); ++r) {
-        if (inSystem[static_cast<std::size_t>(c.sources[static_cast<std::size_t>(r)])] != 0) keep.push_back(r);
-      }
-      if (static_cast<Eigen::Index>(keep.size()) != c.centres.rows()) {
-        std::vector<Eigen::Index> newRow(static_cast<std::size_t>(c.centres.rows()), -1);
-        for (std::size_t i = 0; i < keep.size(); ++i) newRow[static_cast<std::size_t>(keep[i])] = static_cast<Eigen::Index>(i);
-        c.centres = rowsOf(c.centres, keep);
-        Eigen::VectorXd targets(static_cast<Eigen::Index>(keep.size()));
-        for (std::size_t i = 0; i < keep.size(); ++i) targets[static_cast<Eigen::Index>(i)] = c.targets[keep[i]];
-        c.targets = std::move(targets);
-        c.sources = rowsOf(c.sources, keep);
-        for (auto& rows : c.offsetRows) {
-          std::vector<Eigen::Index> kept;
-          for (const Eigen::Index r : rows) {
-            if (newRow[static_cast<std::size_t>(r)] >= 0) kept.push_back(newRow[static_cast<std::size_t>(r)]);
+        std::size_t own = 0;
+        for (const char c : ownedRow) own += c != 0 ? 1 : 0;
+        dl.haloPoints = ownedRow.size() - own;
+        if (k < levels) {
+          level = detail::cellCentroids(bp, bn, box, k);
+          // A cell's point belongs to the block whose Morton range holds the centroid.
+          ownedPoint.resize(static_cast<std::size_t>(level.positions.rows()));
+          for (Eigen::Index i = 0; i < level.positions.rows(); ++i) {
+            ownedPoint[static_cast<std::size_t>(i)] =
+                detail::ownerOfKey(blockSplitters, detail::mortonKey63(level.positions.row(i).transpose(), box)) == block ? 1 : 0;
           }
-          rows = std::move(kept);
+        } else {
+          level = detail::LevelPoints{std::move(bp), std::move(bn)};
+          ownedPoint = std::move(ownedRow);
         }
-        c.candidateIndex.reset();
+        // Level points within g·σ_k of an owned one are in the block's system.
+        std::vector<Eigen::Index> ownedRows;
+        for (std::size_t i = 0; i < ownedPoint.size(); ++i) {
+          if (ownedPoint[i] != 0) ownedRows.push_back(static_cast<Eigen::Index>(i));
+        }
+        inSystem.assign(ownedPoint.size(), 0);
+        if (exact) {
+          inSystem = ownedPoint;  // the rank's rows of the global system: its owned centres
+        } else if (!ownedRows.empty()) {
+          const NeighborIndex ownedIndex(rowsOf(level.positions, ownedRows));
+          const NeighborLists nearest = ownedIndex.knnSearch(level.positions, 1);
+          for (std::size_t i = 0; i < inSystem.size(); ++i) {
+            if (nearest.offsets[i + 1] == nearest.offsets[i]) continue;
+            const auto q = static_cast<Eigen::Index>(nearest.indices[static_cast<std::size_t>(nearest.offsets[i])]);
+            const double d = (level.positions.row(static_cast<Eigen::Index>(i)) - level.positions.row(ownedRows[static_cast<std::size_t>(q)])).norm();
+            inSystem[i] = d <= dist.halo * sigma ? 1 : 0;
+          }
+        }
       }
-    }
-    const Eigen::Index systemCentres = c.centres.rows();
-    if (k <= lastAnchorLevel && (gathered || ranks == 1)) {
-      detail::addLevelAnchors(c, sigma, spacing, deltas, anchorBox, k, cloud, cloudNormals, *winding, *cloudIndex, lr,
-                              norm.scale);
-    }
-    lr.offsetMedial = c.offsetMedial;
-    lr.offSurfaceMedial = c.offSurfaceMedial;
-    lr.surfacePoints = c.surface;
-    lr.offsetCandidates = c.offsetCandidates;
-    lr.offsetKept = c.offsetKept;
-    lr.offSurfaceCandidates = c.offSurfaceCandidates;
-    lr.offSurfaceKept = c.offSurfaceKept;
-    lr.mergedCentres = c.merged;
-    lr.secondsConstraints = secondsSince(t);
+      dl.levelPoints = static_cast<std::size_t>(level.positions.rows());
 
-    // b = t − f_{k−1}(C).
-    t = Clock::now();
-    notify(interrupter, FitStage::Residual, k, levels, "");
-    Eigen::VectorXd fPrev = Eigen::VectorXd::Constant(c.centres.rows(), -1.0);
-    if (!fitted.empty() && c.centres.rows() > 0) fPrev = evaluator->evaluateNormalized(c.centres);
-    const Eigen::VectorXd b = c.targets - fPrev;
-    lr.maxResidualBefore = comm.allreduce((b.size() > 0 ? b.cwiseAbs().maxCoeff() : 0.0) / norm.scale, ReduceOp::Max);
-    lr.secondsResidual = secondsSince(t);
+      detail::ConstraintOptions co;
+      co.offsets = deltas;
+      co.offSurfaceDistance = sigma / 10.0;
+      co.offSurfaceSide = offSide;
+      co.validityTolerance = options.validityTolerance;
+      co.mergeDistance = options.mergeDistance * sigma;
+      co.dropZeroNormalPoints = options.dropZeroNormalPoints;
+      co.tangentSideTest = options.sideTest;
+      co.medial = options.medialConstraints;
+      detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals, co);
+      const Eigen::Index mergedCentres = c.centres.rows();
+      // The unit's system: the centres of the level points in it; anchors (one block, or gathered levels).
+      if (!gathered) {
+        std::vector<Eigen::Index> keep;
+        for (Eigen::Index r = 0; r < c.centres.rows(); ++r) {
+          if (inSystem[static_cast<std::size_t>(c.sources[static_cast<std::size_t>(r)])] != 0) keep.push_back(r);
+        }
+        if (static_cast<Eigen::Index>(keep.size()) != c.centres.rows()) {
+          std::vector<Eigen::Index> newRow(static_cast<std::size_t>(c.centres.rows()), -1);
+          for (std::size_t i = 0; i < keep.size(); ++i) newRow[static_cast<std::size_t>(keep[i])] = static_cast<Eigen::Index>(i);
+          c.centres = rowsOf(c.centres, keep);
+          Eigen::VectorXd targets(static_cast<Eigen::Index>(keep.size()));
+          for (std::size_t i = 0; i < keep.size(); ++i) targets[static_cast<Eigen::Index>(i)] = c.targets[keep[i]];
+          c.targets = std::move(targets);
+          c.sources = rowsOf(c.sources, keep);
+          for (auto& rows : c.offsetRows) {
+            std::vector<Eigen::Index> kept;
+            for (const Eigen::Index r : rows) {
+              if (newRow[static_cast<std::size_t>(r)] >= 0) kept.push_back(newRow[static_cast<std::size_t>(r)]);
+            }
+            rows = std::move(kept);
+          }
+          c.candidateIndex.reset();
+        }
+      }
+      const Eigen::Index systemCentres = c.centres.rows();
+      if (k <= lastAnchorLevel && (gathered || parts == 1)) {
+        detail::addLevelAnchors(c, sigma, spacing, deltas, anchorBox, k, cloud, cloudNormals, *winding, *cloudIndex, lr,
+                                norm.scale);
+      }
+      lr.offsetMedial = c.offsetMedial;
+      lr.offSurfaceMedial = c.offSurfaceMedial;
+      lr.surfacePoints += c.surface;
+      lr.offsetCandidates = c.offsetCandidates;
+      lr.offsetKept = c.offsetKept;
+      lr.offSurfaceCandidates += c.offSurfaceCandidates;
+      lr.offSurfaceKept += c.offSurfaceKept;
+      lr.mergedCentres += c.merged;
+      lr.secondsConstraints += secondsSince(tu);
+
+      // b = t − f_{k−1}(C).
+      tu = Clock::now();
+      notify(interrupter, FitStage::Residual, k, levels, unitName);
+      Eigen::VectorXd fPrev = Eigen::VectorXd::Constant(c.centres.rows(), -1.0);
+      if (!fitted.empty() && c.centres.rows() > 0) fPrev = evaluator->evaluateNormalized(c.centres);
+      const Eigen::VectorXd b = c.targets - fPrev;
+      maxResidual = std::max(maxResidual, b.size() > 0 ? b.cwiseAbs().maxCoeff() : 0.0);
+      lr.secondsResidual += secondsSince(tu);
+
+      // Assemble and solve the unit's system (the level's whole system when gathered); exact mode: the
+      // rank's rows of the level's global system, solved by distributed PCG.
+      tu = Clock::now();
+      notify(interrupter, FitStage::Assembly, k, levels, unitName + std::to_string(c.centres.rows()) + " centres");
+      const double lambda = options.smoothing * k;
+      Eigen::VectorXd weights = Eigen::VectorXd::Zero(b.size());
+      SolveStats solve;
+      std::size_t nonZeros = 0;
+      if (exact && !gathered) {
+        const detail::DistributedSystem system = detail::distributedSystem(comm, c.centres, sigma, lambda, box);
+        bytes += system.setupBytes;
+        nonZeros = system.rows.nonZeros();
+        dl.ghosts = system.ghosts;
+        lr.secondsAssembly += secondsSince(tu);
+        tu = Clock::now();
+        notify(interrupter, FitStage::Solve, k, levels, std::to_string(nonZeros) + " non-zeros (this rank's rows)");
+        const int blockSize = options.preconditioner == PreconditionerKind::BlockJacobi ? options.blockSize : 1;
+        const detail::DistributedSolve solved = detail::solveDistributedCg(
+            comm, system, b, weights, detail::levelSolverOptions(options, k >= levels), options.precision, blockSize);
+        solve = solved.stats;
+        bytes += solved.bytes;
+      } else {
+        // The memory budget, per unit: with blocks, one block's system is all that is held at a time.
+        const detail::NonZeroCheck budget = [&](std::size_t z) {
+          std::ostringstream what;
+          what.precision(3);
+          what << unitName << "level " << k << " of " << levels << " (" << c.centres.rows() << " centres, about "
+               << static_cast<double>(z) << " non-zeros)";
+          requireMemory(options.limits, "fit", estimateLevelBytes(static_cast<std::size_t>(c.centres.rows()), z, options),
+                        what.str(), gathered ? "raise --coarse-points less, or fit a sparser cloud" : "use more --blocks");
+        };
+        const bool reuseIndex = c.candidateIndex && c.centres.rows() == mergedCentres;
+        const CsrMatrix a = reuseIndex ? detail::assembleWendland(c.centres, sigma, lambda, *c.candidateIndex, c.candidateRow, budget)
+                                       : detail::assembleWendland(c.centres, sigma, lambda, budget);
+        nonZeros = a.nonZeros();
+        lr.secondsAssembly += secondsSince(tu);
+        tu = Clock::now();
+        notify(interrupter, FitStage::Solve, k, levels, unitName + std::to_string(a.nonZeros()) + " non-zeros");
+        solve = detail::solveLevelSystem(device, a, b, options, k >= levels, weights);
+      }
+      const double solveSeconds = secondsSince(tu);
+      lr.secondsSolve += solveSeconds;
+      dl.secondsSolve = solveSeconds;
+      dl.unknowns = static_cast<std::size_t>(c.centres.rows());
+      dl.nonZeros = nonZeros;
+      dl.iterations = solve.iterations;
+      if (j == 0) {
+        lr.solve = solve;
+      } else {
+        // The blocks' solves as one: the most iterations, the worst residuals, converged if all did.
+        lr.solve.iterations = std::max(lr.solve.iterations, solve.iterations);
+        if (!solve.converged && lr.solve.converged) {
+          lr.solve.converged = false;
+          lr.solve.reason = solve.reason;
+        }
+        lr.solve.relativeResidual = std::max(lr.solve.relativeResidual, solve.relativeResidual);
+        lr.solve.recurrenceResidual = std::max(lr.solve.recurrenceResidual, solve.recurrenceResidual);
+        lr.solve.maxResidual = std::max(lr.solve.maxResidual, solve.maxResidual);
+        lr.solve.seconds += solve.seconds;
+      }
+
+      // Keep the owned centres (every centre of a gathered level).
+      std::vector<Eigen::Index> ownedCentres;
+      for (Eigen::Index r = 0; r < c.centres.rows(); ++r) {
+        const Eigen::Index src = r < systemCentres ? c.sources[static_cast<std::size_t>(r)] : -1;
+        const bool own = gathered || (src >= 0 ? ownedPoint[static_cast<std::size_t>(src)] != 0
+                                               : detail::ownerOfKey(blockSplitters, detail::mortonKey63(c.centres.row(r).transpose(), box)) == block);
+        if (own) ownedCentres.push_back(r);
+      }
+      dl.ownedCentres = ownedCentres.size();
+      packed.reserve(packed.size() + ownedCentres.size() * 4);
+      for (const Eigen::Index r : ownedCentres) {
+        for (int a3 = 0; a3 < 3; ++a3) packed.push_back(c.centres(r, a3));
+        packed.push_back(weights[r]);
+      }
+      if (k == levels) {
+        for (std::size_t q = 0; q < deltas.size(); ++q) {
+          std::vector<Eigen::Index> rows;
+          for (const Eigen::Index r : c.offsetRows[q]) {
+            const Eigen::Index src = c.sources[static_cast<std::size_t>(r)];
+            if (gathered ? me == 0 : ownedPoint[static_cast<std::size_t>(src)] != 0) rows.push_back(r);
+          }
+          const Points add = rowsOf(c.centres, rows);
+          Points& all = finestOffsetPoints[q];
+          Points grown(all.rows() + add.rows(), 3);
+          grown << all, add;
+          all = std::move(grown);
+        }
+      }
+      dl.seconds = secondsSince(unitStart);
+      mine[static_cast<std::size_t>(j)].peakBytes = std::max(mine[static_cast<std::size_t>(j)].peakBytes, peakResidentBytes());
+    }
+
+    // The level's residual before its solve, over all blocks: with fitTolerance, a level already within it
+    // is dropped (fit() stops before solving it; here the blocks have been solved, the result is the same).
+    lr.maxResidualBefore = comm.allreduce(maxResidual / norm.scale, ReduceOp::Max);
     if (k >= 2 && options.fitTolerance > 0.0 && lr.maxResidualBefore * norm.scale <= options.fitTolerance) {
       rep.stoppedEarly = true;
       rep.levelReports.push_back(lr);
       break;
     }
 
-    // Assemble and solve the rank's system (the level's whole system when gathered); exact mode: the
-    // rank's rows of the level's global system, solved by distributed PCG.
-    t = Clock::now();
-    notify(interrupter, FitStage::Assembly, k, levels, std::to_string(c.centres.rows()) + " centres");
-    const double lambda = options.smoothing * k;
-    SolverOptions so = options.solver;
-    if (so.absoluteTolerance == 0.0) so.absoluteTolerance = options.levelTolerance;
-    if (k < levels && options.coarseTolerance > 0.0) so.relativeTolerance = options.coarseTolerance;
-    Eigen::VectorXd weights = Eigen::VectorXd::Zero(b.size());
-    std::size_t nonZeros = 0;
-    if (exact && !gathered) {
-      const detail::DistributedSystem system = detail::distributedSystem(comm, c.centres, sigma, lambda, box);
-      bytes += system.setupBytes;
-      nonZeros = system.rows.nonZeros();
-      dl.ghosts = system.ghosts;
-      lr.secondsAssembly = secondsSince(t);
-      t = Clock::now();
-      notify(interrupter, FitStage::Solve, k, levels, std::to_string(nonZeros) + " non-zeros (this rank's rows)");
-      const int blockSize = options.preconditioner == PreconditionerKind::BlockJacobi ? options.blockSize : 1;
-      const detail::DistributedSolve solved =
-          detail::solveDistributedCg(comm, system, b, weights, so, options.precision, blockSize);
-      lr.solve = solved.stats;
-      bytes += solved.bytes;
-    } else {
-      const bool reuseIndex = c.candidateIndex && c.centres.rows() == mergedCentres;
-      const CsrMatrix a = reuseIndex ? detail::assembleWendland(c.centres, sigma, lambda, *c.candidateIndex, c.candidateRow)
-                                     : assembleWendland(c.centres, sigma, lambda);
-      nonZeros = a.nonZeros();
-      lr.secondsAssembly = secondsSince(t);
-      t = Clock::now();
-      notify(interrupter, FitStage::Solve, k, levels, std::to_string(a.nonZeros()) + " non-zeros");
-      if (b.size() > 0) {
-        const DeviceCsr m = DeviceCsr::upload(device, a, options.precision);
-        const DeviceVector db = DeviceVector::upload(device, b, options.precision);
-        DeviceVector x(device, static_cast<std::size_t>(b.size()), options.precision);
-        std::unique_ptr<Preconditioner> pre;
-        if (options.preconditioner == PreconditionerKind::BlockJacobi) {
-          pre = std::make_unique<BlockJacobiPreconditioner>(device, a, options.precision, options.blockSize);
-        } else {
-          pre = std::make_unique<JacobiPreconditioner>(m);
-        }
-        lr.solve = solveCg(m, db, x, so, pre.get(), nullptr);
-        weights = x.download();
-      } else {
-        lr.solve.converged = true;
-        lr.solve.reason = StopReason::Converged;
-      }
-    }
-    lr.secondsSolve = secondsSince(t);
-    dl.secondsSolve = lr.secondsSolve;
-    dl.unknowns = static_cast<std::size_t>(c.centres.rows());
-    dl.nonZeros = nonZeros;
-    dl.iterations = lr.solve.iterations;
-
-    // Keep the owned centres (every centre of a gathered level) and gather the level.
-    std::vector<Eigen::Index> ownedCentres;
-    for (Eigen::Index r = 0; r < c.centres.rows(); ++r) {
-      const Eigen::Index s = r < systemCentres ? c.sources[static_cast<std::size_t>(r)] : -1;
-      const bool own = gathered || (s >= 0 ? ownedPoint[static_cast<std::size_t>(s)] != 0
-                                           : detail::ownerOfKey(input.splitters, detail::mortonKey63(c.centres.row(r).transpose(), box)) == me);
-      if (own) ownedCentres.push_back(r);
-    }
-    dl.ownedCentres = ownedCentres.size();
+    // The level: every unit's owned centres, gathered (the same on every rank, in block order).
     FieldLevel fl;
     fl.sigma = sigma;
-    if (gathered) {
-      fl.centres = c.centres;
-      fl.weights = weights;
-    } else {
-      const Points oc = rowsOf(c.centres, ownedCentres);
-      std::vector<double> packed;
-      packed.reserve(ownedCentres.size() * 4);
-      for (std::size_t i = 0; i < ownedCentres.size(); ++i) {
-        for (int a3 = 0; a3 < 3; ++a3) packed.push_back(oc(static_cast<Eigen::Index>(i), a3));
-        packed.push_back(weights[ownedCentres[i]]);
-      }
-      const std::vector<double> all = comm.allgather(packed);
-      bytes += static_cast<std::uint64_t>(all.size() * sizeof(double));
-      const auto n = static_cast<Eigen::Index>(all.size() / 4);
-      fl.centres.resize(n, 3);
-      fl.weights.resize(n);
-      for (Eigen::Index i = 0; i < n; ++i) {
-        for (int a3 = 0; a3 < 3; ++a3) fl.centres(i, a3) = all[static_cast<std::size_t>(4 * i + a3)];
-        fl.weights[i] = all[static_cast<std::size_t>(4 * i + 3)];
-      }
+    const std::vector<double> all = gathered ? std::move(packed) : comm.allgather(packed);
+    if (!gathered) bytes += static_cast<std::uint64_t>(all.size() * sizeof(double));
+    const auto n = static_cast<Eigen::Index>(all.size() / 4);
+    fl.centres.resize(n, 3);
+    fl.weights.resize(n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      for (int a3 = 0; a3 < 3; ++a3) fl.centres(i, a3) = all[static_cast<std::size_t>(4 * i + a3)];
+      fl.weights[i] = all[static_cast<std::size_t>(4 * i + 3)];
     }
-    // The level's report: counts over the ranks (gathered levels: one rank's, the same everywhere).
+    // The level's report: counts over the blocks (gathered levels: one rank's, the same everywhere).
+    std::int64_t nonZerosAll = 0;
+    for (const DistributedLevelReport& dl : dls) nonZerosAll += static_cast<std::int64_t>(dl.nonZeros);
     lr.centres = static_cast<std::size_t>(fl.centres.rows());
-    lr.nonZeros = static_cast<std::size_t>(comm.allreduce(static_cast<std::int64_t>(gathered ? (me == 0 ? nonZeros : 0) : nonZeros), ReduceOp::Sum));
+    lr.nonZeros = static_cast<std::size_t>(comm.allreduce(gathered ? (me == 0 ? nonZerosAll : 0) : nonZerosAll, ReduceOp::Sum));
     lr.solve.iterations = static_cast<int>(comm.allreduce(static_cast<std::int64_t>(lr.solve.iterations), ReduceOp::Max));
-    lr.solve.converged = comm.allreduce(static_cast<std::int64_t>(lr.solve.converged ? 0 : 1), ReduceOp::Sum) == 0;
+    const bool allConverged = comm.allreduce(static_cast<std::int64_t>(lr.solve.converged ? 0 : 1), ReduceOp::Sum) == 0;
+    if (!allConverged && lr.solve.converged) {
+      lr.solve.converged = false;
+      lr.solve.reason = StopReason::IterationLimit;
+    }
     lr.solve.relativeResidual = comm.allreduce(lr.solve.relativeResidual, ReduceOp::Max);
     lr.solve.maxResidual = comm.allreduce(lr.solve.maxResidual, ReduceOp::Max);
-    if (k == levels) {
-      for (std::size_t j = 0; j < deltas.size(); ++j) {
-        std::vector<Eigen::Index> rows;
-        for (const Eigen::Index r : c.offsetRows[j]) {
-          const Eigen::Index s = c.sources[static_cast<std::size_t>(r)];
-          if (gathered ? me == 0 : ownedPoint[static_cast<std::size_t>(s)] != 0) rows.push_back(r);
-        }
-        finestOffsetPoints[j] = rowsOf(c.centres, rows);
-      }
-    }
     fitted.push_back(std::move(fl));
     evaluator->appendLevel(fitted.back());
     rep.levelReports.push_back(lr);
-    dl.seconds = secondsSince(levelStart);
-    dl.bytes = bytes - bytesBefore;
-    mine.levels.push_back(dl);
+    dls.front().bytes = bytes - bytesBefore;  // the rank's exchanges, on its first block
+    // A gathered level is one solve for all of the rank's blocks: reported on the first.
+    if (units == 1) dls.front().seconds = secondsSince(levelStart);
+    for (int j = 0; j < localBlocks; ++j) mine[static_cast<std::size_t>(j)].levels.push_back(dls[static_cast<std::size_t>(j)]);
   }
 
   // E_0 at the owned input points and E_δ at the owned finest offset points, from the final field.
@@ -557,29 +708,32 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
   }
   ImplicitField field(norm, -1.0, std::move(fitted), rep.offsets, input.bounds);
 
-  // Every rank's report on every rank (fixed-size records, levels flattened).
-  mine.secondsFit = secondsSince(start);
-  mine.bytesReceived = bytes;
+  // Every block's report on every rank (fixed-size records: a header per block, then its levels).
   struct Flat {
     double v[11];
   };
   std::vector<Flat> flat;
-  flat.push_back({{static_cast<double>(mine.rank), static_cast<double>(mine.readRows), static_cast<double>(mine.points),
-                   static_cast<double>(mine.keyBegin), static_cast<double>(mine.keyEnd), mine.secondsPartition,
-                   mine.secondsFit, static_cast<double>(mine.bytesReceived), 0.0, 0.0, 0.0}});
-  for (const DistributedLevelReport& l : mine.levels) {
-    flat.push_back({{static_cast<double>(l.level) + (l.gathered ? 0.5 : 0.0), static_cast<double>(l.levelPoints),
-                     static_cast<double>(l.haloPoints), static_cast<double>(l.unknowns), static_cast<double>(l.ownedCentres),
-                     static_cast<double>(l.nonZeros), static_cast<double>(l.iterations), l.seconds,
-                     static_cast<double>(l.ghosts), static_cast<double>(l.bytes), l.secondsSolve}});
+  for (std::size_t j = 0; j < mine.size(); ++j) {
+    DistributedRankReport& m = mine[j];
+    m.secondsFit = secondsSince(start);
+    m.bytesReceived = j == 0 ? bytes : 0;
+    m.peakBytes = std::max(m.peakBytes, j + 1 == mine.size() ? peakResidentBytes() : std::uint64_t{0});
+    flat.push_back({{static_cast<double>(m.rank), static_cast<double>(m.readRows), static_cast<double>(m.points),
+                     static_cast<double>(m.keyBegin), static_cast<double>(m.keyEnd), m.secondsPartition, m.secondsFit,
+                     static_cast<double>(m.bytesReceived), static_cast<double>(m.levels.size()), static_cast<double>(m.block),
+                     static_cast<double>(m.peakBytes)}});
+    for (const DistributedLevelReport& l : m.levels) {
+      flat.push_back({{static_cast<double>(l.level) + (l.gathered ? 0.5 : 0.0), static_cast<double>(l.levelPoints),
+                       static_cast<double>(l.haloPoints), static_cast<double>(l.unknowns), static_cast<double>(l.ownedCentres),
+                       static_cast<double>(l.nonZeros), static_cast<double>(l.iterations), l.seconds,
+                       static_cast<double>(l.ghosts), static_cast<double>(l.bytes), l.secondsSolve}});
+    }
   }
-  std::vector<std::size_t> counts;
-  const std::vector<Flat> all = comm.allgather(flat, &counts);
+  const std::vector<Flat> all = comm.allgather(flat);
   drep.rankReports.clear();
-  std::size_t at = 0;
-  for (const std::size_t n : counts) {
+  for (std::size_t at = 0; at < all.size();) {
     DistributedRankReport r;
-    const Flat& h = all[at];
+    const Flat& h = all[at++];
     r.rank = static_cast<int>(h.v[0]);
     r.readRows = static_cast<std::size_t>(h.v[1]);
     r.points = static_cast<std::size_t>(h.v[2]);
@@ -588,8 +742,11 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
     r.secondsPartition = h.v[5];
     r.secondsFit = h.v[6];
     r.bytesReceived = static_cast<std::uint64_t>(h.v[7]);
-    for (std::size_t i = 1; i < n; ++i) {
-      const Flat& f = all[at + i];
+    const auto levelsHere = static_cast<std::size_t>(h.v[8]);
+    r.block = static_cast<int>(h.v[9]);
+    r.peakBytes = static_cast<std::uint64_t>(h.v[10]);
+    for (std::size_t i = 0; i < levelsHere && at < all.size(); ++i) {
+      const Flat& f = all[at++];
       DistributedLevelReport l;
       l.level = static_cast<int>(f.v[0]);
       l.gathered = f.v[0] - l.level > 0.25;
@@ -606,7 +763,6 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       r.levels.push_back(l);
     }
     drep.rankReports.push_back(r);
-    at += n;
   }
   rep.secondsTotal = secondsSince(start);
   return FitResult{std::move(field), std::move(rep), std::move(evaluator)};

@@ -72,8 +72,9 @@ std::uint64_t mortonKey63(const Eigen::Vector3d& p, const HierarchyBox& box) noe
 }
 
 std::vector<std::uint64_t> balancedSplitters(Communicator& comm, const std::vector<std::uint64_t>& keys,
-                                             int histogramBits) {
+                                             int histogramBits, int parts) {
   if (histogramBits < 1 || histogramBits > 24) throw InvalidArgument("balancedSplitters: histogramBits must be in [1, 24]");
+  if (parts < 0) throw InvalidArgument("balancedSplitters: parts must be >= 0");
   const int shift = 63 - histogramBits;
   const std::size_t buckets = std::size_t{1} << histogramBits;
   std::vector<std::int64_t> histogram(buckets, 0);
@@ -81,7 +82,7 @@ std::vector<std::uint64_t> balancedSplitters(Communicator& comm, const std::vect
   comm.allreduce(histogram.data(), histogram.size(), ReduceOp::Sum);
   std::int64_t total = 0;
   for (const std::int64_t h : histogram) total += h;
-  const int p = std::max(1, comm.size());
+  const int p = std::max(1, parts > 0 ? parts : comm.size());
   std::vector<std::uint64_t> splitters(static_cast<std::size_t>(p) + 1, std::uint64_t{1} << 63);
   splitters[0] = 0;
   std::int64_t cumulative = 0;
@@ -117,26 +118,70 @@ OwnedRows redistribute(Communicator& comm, const Points& positions, const Points
   return unpackRows(comm.alltoallv(send, counts));
 }
 
+int firstBlockOfRank(int rank, int ranks, int blocks) noexcept {
+  return static_cast<int>(static_cast<std::int64_t>(rank) * blocks / std::max(1, ranks));
+}
+
+namespace {
+
+// The halo's grid: cubic cells of side h ≥ radius (at most 2^20 a side), keyed with a one-cell margin so
+// that the neighbours of every cell have keys.
+class HaloGrid {
+ public:
+  HaloGrid(const Points& positions, const HierarchyBox& box, double radius)
+      : p_(positions), box_(box), h_(std::max(radius, (box.max - box.min).maxCoeff() / static_cast<double>(1 << 20))) {}
+  std::uint64_t cell(Eigen::Index i, int dx = 0, int dy = 0, int dz = 0) const {
+    const int d[3] = {dx, dy, dz};
+    std::uint64_t key = 0;
+    for (int a = 0; a < 3; ++a) {
+      const auto c = static_cast<std::int64_t>(std::floor((p_(i, a) - box_.min[a]) / h_)) + d[a] + 1;
+      key = (key << 21) | static_cast<std::uint64_t>(std::clamp<std::int64_t>(c, 0, (1 << 21) - 1));
+    }
+    return key;
+  }
+  /// Whether row i lies in one of `cells` or next to one.
+  template <class Set>
+  bool near(Eigen::Index i, const Set& cells) const {
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -1; dz <= 1; ++dz) {
+          if (cells.count(cell(i, dx, dy, dz)) != 0) return true;
+        }
+      }
+    }
+    return false;
+  }
+
+ private:
+  const Points& p_;
+  const HierarchyBox& box_;
+  double h_;
+};
+
+}  // namespace
+
+std::vector<Eigen::Index> rowsNear(const Points& positions, const std::vector<char>& core, const HierarchyBox& box,
+                                   double radius) {
+  const HaloGrid grid(positions, box, radius);
+  std::unordered_set<std::uint64_t> cells;
+  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
+    if (core[static_cast<std::size_t>(i)] != 0) cells.insert(grid.cell(i));
+  }
+  std::vector<Eigen::Index> out;
+  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
+    if (core[static_cast<std::size_t>(i)] != 0 || grid.near(i, cells)) out.push_back(i);
+  }
+  return out;
+}
+
 OwnedRows exchangeHalo(Communicator& comm, const Points& positions, const Points& normals,
                        const std::vector<std::int64_t>& ids, const HierarchyBox& box, double radius) {
   const int p = comm.size();
   if (p == 1) return OwnedRows{Points(0, 3), Points(0, 3), {}};
-  // A grid of cubic cells of side h ≥ radius (at most 2^20 a side).
-  const Eigen::Vector3d extent = box.max - box.min;
-  const double h = std::max(radius, extent.maxCoeff() / static_cast<double>(1 << 20));
-  auto cell = [&](Eigen::Index i, const int d[3]) {
-    std::uint64_t key = 0;
-    for (int a = 0; a < 3; ++a) {
-      const auto c = static_cast<std::int64_t>(std::floor((positions(i, a) - box.min[a]) / h)) + d[a] + 1;
-      key = (key << 21) | static_cast<std::uint64_t>(std::clamp<std::int64_t>(c, 0, (1 << 21) - 1));
-    }
-    return key;
-  };
-  const int zero[3] = {0, 0, 0};
-  std::vector<std::uint64_t> mine;
-  mine.reserve(static_cast<std::size_t>(positions.rows()));
-  for (Eigen::Index i = 0; i < positions.rows(); ++i) mine.push_back(cell(i, zero));
-  std::vector<std::uint64_t> occupied = mine;
+  const HaloGrid grid(positions, box, radius);
+  std::vector<std::uint64_t> occupied;
+  occupied.reserve(static_cast<std::size_t>(positions.rows()));
+  for (Eigen::Index i = 0; i < positions.rows(); ++i) occupied.push_back(grid.cell(i));
   std::sort(occupied.begin(), occupied.end());
   occupied.erase(std::unique(occupied.begin(), occupied.end()), occupied.end());
   std::vector<std::size_t> counts;
@@ -149,16 +194,7 @@ OwnedRows exchangeHalo(Communicator& comm, const Points& positions, const Points
       const std::unordered_set<std::uint64_t> theirs(all.begin() + static_cast<std::ptrdiff_t>(begin),
                                                      all.begin() + static_cast<std::ptrdiff_t>(end));
       for (Eigen::Index i = 0; i < positions.rows(); ++i) {
-        bool near = false;
-        for (int dx = -1; dx <= 1 && !near; ++dx) {
-          for (int dy = -1; dy <= 1 && !near; ++dy) {
-            for (int dz = -1; dz <= 1 && !near; ++dz) {
-              const int d[3] = {dx, dy, dz};
-              near = theirs.count(cell(i, d)) != 0;
-            }
-          }
-        }
-        if (near) packRow(send[static_cast<std::size_t>(r)], ids[static_cast<std::size_t>(i)], positions, normals, i);
+        if (grid.near(i, theirs)) packRow(send[static_cast<std::size_t>(r)], ids[static_cast<std::size_t>(i)], positions, normals, i);
       }
     }
     begin = end;

@@ -17,11 +17,21 @@ namespace duplexfit::detail {
 /// into the box.
 std::uint64_t mortonKey63(const Eigen::Vector3d& p, const HierarchyBox& box) noexcept;
 
-/// P + 1 splitters 0 = s_0 ≤ s_1 ≤ … ≤ s_P = 2^63: rank r owns the keys [s_r, s_{r+1}). Chosen from a
-/// histogram of the keys' top `histogramBits` bits (reduced over the ranks) so that each rank's count is
-/// within one histogram bucket of N/P.
+/// B + 1 splitters 0 = s_0 ≤ s_1 ≤ … ≤ s_B = 2^63 for B = `parts` (0: the number of ranks P): part b owns
+/// the keys [s_b, s_{b+1}). Chosen from a histogram of the keys' top `histogramBits` bits (reduced over the
+/// ranks) so that each part's count is within one histogram bucket of N/B.
 std::vector<std::uint64_t> balancedSplitters(Communicator& comm, const std::vector<std::uint64_t>& keys,
-                                             int histogramBits = 18);
+                                             int histogramBits = 18, int parts = 0);
+
+/// The first of rank r's blocks when B blocks are shared by P ranks: ⌊r·B/P⌋ (rank r holds the blocks
+/// [firstBlockOfRank(r), firstBlockOfRank(r + 1))).
+int firstBlockOfRank(int rank, int ranks, int blocks) noexcept;
+
+/// Rows of `positions` within `radius` of the rows flagged in `core` (a superset: every row in a grid cell
+/// of side ≥ radius next to a cell holding a flagged row), flagged rows included, in row order. The same
+/// cells as exchangeHalo, so a block of one process gets the data a rank owning that block would.
+std::vector<Eigen::Index> rowsNear(const Points& positions, const std::vector<char>& core, const HierarchyBox& box,
+                                   double radius);
 
 /// The rank whose range holds `key`.
 int ownerOfKey(const std::vector<std::uint64_t>& splitters, std::uint64_t key) noexcept;

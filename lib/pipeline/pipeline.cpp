@@ -731,11 +731,13 @@ PipelineResult runDistributedPipeline(const Device& device, Communicator& comm, 
   report.sideTest = options.fit.sideTest;
   DistributedReport drep;
   progress.start("partition");
-  const DistributedPoints owned = partitionPoints(comm, file.points, static_cast<std::int64_t>(first), fileRows, drep);
+  const DistributedPoints owned = partitionPoints(comm, file.points, static_cast<std::int64_t>(first), fileRows, drep, distributed.blocks);
   file.points = PointSet();
   report.duplicatesMerged = static_cast<std::size_t>(fileRows) -
       static_cast<std::size_t>(comm.allreduce(static_cast<std::int64_t>(owned.points.size()), ReduceOp::Sum));
-  progress.log("partition: " + std::to_string(comm.size()) + " ranks, " + std::to_string(fileRows) + " rows, " +
+  progress.log("partition: " + std::to_string(comm.size()) + (comm.size() == 1 ? " rank, " : " ranks, ") +
+               (drep.blocks != comm.size() ? std::to_string(drep.blocks) + " blocks, " : std::string()) +
+               std::to_string(fileRows) + " rows, " +
                (drep.ownedOnce ? "every row owned once" : "ROWS NOT OWNED ONCE"));
   progress.end();
   if (!drep.ownedOnce) throw InvalidArgument(inputPath + ": the partition lost or duplicated rows (internal error)");

@@ -4,6 +4,8 @@
 #include <sys/resource.h>
 
 #include <nlohmann/json.hpp>
+#include <algorithm>
+#include <map>
 #include <ostream>
 
 #include "duplexfit/pipeline.hpp"
@@ -329,7 +331,11 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
   Json distributed;  // null unless the fit was distributed
   if (report.distributed) {
     const DistributedReport& d = *report.distributed;
-    Json ranks = Json::array();
+    // One entry per block, and per rank the sums over its blocks (with one block per rank, the same).
+    Json blocks = Json::array();
+    std::map<int, Json> ranksByIndex;
+    std::map<int, int> blocksOfRank;
+    for (const DistributedRankReport& r : d.rankReports) ++blocksOfRank[r.rank];
     for (const DistributedRankReport& r : d.rankReports) {
       Json levels = Json::array();
       std::size_t halo = 0, unknowns = 0, nonZeros = 0;
@@ -352,21 +358,46 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
         nonZeros += l.nonZeros;
         iterations += l.iterations;
       }
-      ranks.push_back(Json{{"rank", r.rank},
-                           {"read_rows", r.readRows},
-                           {"points", r.points},
-                           {"halo_points", halo},
-                           {"unknowns", unknowns},
-                           {"non_zeros", nonZeros},
-                           {"cg_iterations", iterations},
-                           {"bytes_received", r.bytesReceived},
-                           {"seconds_partition", r.secondsPartition},
-                           {"seconds_fit", r.secondsFit},
-                           {"levels", levels}});
+      blocks.push_back(Json{{"block", r.block},
+                            {"rank", r.rank},
+                            {"points", r.points},
+                            {"halo_points", halo},
+                            {"unknowns", unknowns},
+                            {"non_zeros", nonZeros},
+                            {"cg_iterations", iterations},
+                            {"peak_bytes", r.peakBytes},
+                            {"levels", levels}});
+      Json& rank = ranksByIndex[r.rank];
+      if (rank.is_null()) {
+        rank = Json{{"rank", r.rank},
+                    {"blocks", blocksOfRank[r.rank]},
+                    {"read_rows", std::size_t{0}},
+                    {"points", std::size_t{0}},
+                    {"halo_points", std::size_t{0}},
+                    {"unknowns", std::size_t{0}},
+                    {"non_zeros", std::size_t{0}},
+                    {"cg_iterations", 0},
+                    {"bytes_received", std::uint64_t{0}},
+                    {"seconds_partition", r.secondsPartition},
+                    {"seconds_fit", r.secondsFit},
+                    {"peak_bytes", std::uint64_t{0}}};
+        if (blocksOfRank[r.rank] == 1) rank["levels"] = levels;
+      }
+      rank["read_rows"] = rank["read_rows"].get<std::size_t>() + r.readRows;
+      rank["points"] = rank["points"].get<std::size_t>() + r.points;
+      rank["halo_points"] = std::max(rank["halo_points"].get<std::size_t>(), halo);
+      rank["unknowns"] = rank["unknowns"].get<std::size_t>() + unknowns;
+      rank["non_zeros"] = rank["non_zeros"].get<std::size_t>() + nonZeros;
+      rank["cg_iterations"] = rank["cg_iterations"].get<int>() + iterations;
+      rank["bytes_received"] = rank["bytes_received"].get<std::uint64_t>() + r.bytesReceived;
+      rank["peak_bytes"] = std::max(rank["peak_bytes"].get<std::uint64_t>(), r.peakBytes);
     }
+    Json ranks = Json::array();
+    for (auto& [index, rank] : ranksByIndex) ranks.push_back(std::move(rank));
     distributed = Json{{"mode", distributedModeName(d.mode)},
                        {"halo", d.halo},
                        {"ranks", d.ranks},
+                       {"blocks", d.blocks},
                        {"communicator", d.communicator},
                        {"coarse_points", d.coarsePoints},
                        {"file_rows", d.fileRows},
@@ -374,7 +405,8 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
                        {"owned_once", d.ownedOnce},
                        {"sigma0_approximate", d.sigma0Approximate},
                        {"winding_proxy_points", d.windingProxyPoints},
-                       {"per_rank", ranks}};
+                       {"per_rank", ranks},
+                       {"per_block", blocks}};
   }
   w["distributed"] = distributed;
   Json denoise;

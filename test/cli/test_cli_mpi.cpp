@@ -70,6 +70,33 @@ double maxDifference(const ImplicitField& a, const ImplicitField& b, const Point
   return worst;
 }
 
+// `mpirun -np P duplexfit <common> <extra> -o dir/out` (P = 0: duplexfit alone, without mpirun); requires
+// exit status 0 and returns the report.
+Json runFit(const fs::path& dir, int ranks, const std::string& common, const std::string& extra, const std::string& out) {
+  const std::string launch = ranks > 0 ? mpirunPrefix() + "-np " + std::to_string(ranks) + " " : std::string();
+  const CliRun r = testing::runCommand(launch + testing::cliPath() + " " + common + " " + extra + " -o " +
+                                       (dir / out).string() + " 2>&1");
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  return testing::readJsonFile(dir / out / "report.json");
+}
+
+ImplicitField fieldOf(const fs::path& dir, const std::string& out) {
+  return ImplicitField::load((dir / out / "field.dpxf").string());
+}
+
+// Both reports' meshes watertight, with the same components (and Euler characteristics: genus).
+void checkSameTopology(const Json& rep, const Json& reference, bool euler) {
+  REQUIRE(rep["meshes"].size() == reference["meshes"].size());
+  for (std::size_t s = 0; s < rep["meshes"].size(); ++s) {
+    CHECK(rep["meshes"][s]["topology"]["watertight"].get<bool>());
+    CHECK(rep["meshes"][s]["topology"]["components"] == reference["meshes"][s]["topology"]["components"]);
+    if (euler) {
+      CHECK(rep["meshes"][s]["topology"]["euler_characteristic"] == reference["meshes"][s]["topology"]["euler_characteristic"]);
+    }
+  }
+}
+
 }  // namespace
 
 TEST_SUITE("mpi") {
@@ -121,13 +148,8 @@ TEST_SUITE("mpi") {
     const fs::path input = dir / "sphere_6k.ply";
     writePointCloud(input.string(), cloud);
     const std::string common = " fit " + input.string() + " --offset 0.05 --resolution 48 --quiet";
-    const std::string cli = testing::cliPath();
     auto run = [&](int ranks, const std::string& extra, const std::string& out) {
-      const CliRun r = testing::runCommand(mpirunPrefix() + "-np " + std::to_string(ranks) + " " + cli + common +
-                                           " --coarse-points 1200 " + extra + " -o " + (dir / out).string() + " 2>&1");
-      INFO(r.out << r.err);
-      REQUIRE(r.status == 0);
-      return testing::readJsonFile(dir / out / "report.json");
+      return runFit(dir, ranks, common.substr(1) + " --coarse-points 1200", extra, out);
     };
     // Serial (no MPI) and one rank distributed.
     const CliRun serial = testing::runCli(common.substr(1) + " -o " + (dir / "serial").string());
@@ -160,10 +182,7 @@ TEST_SUITE("mpi") {
         MESSAGE("P = " << ranks << ", g = " << g << ": max |f_P - f_1| = " << error[{ranks, g}]);
         // Watertight meshes with the same component counts as one rank.
         REQUIRE(rep["meshes"].size() == 2);
-        for (std::size_t s = 0; s < rep["meshes"].size(); ++s) {
-          CHECK(rep["meshes"][s]["topology"]["watertight"].get<bool>());
-          CHECK(rep["meshes"][s]["topology"]["components"] == one["meshes"][s]["topology"]["components"]);
-        }
+        checkSameTopology(rep, one, false);
       }
       CHECK(error[{ranks, 2}] < error[{ranks, 1}]);
       CHECK(error[{ranks, 4}] < error[{ranks, 2}]);
@@ -200,13 +219,8 @@ TEST_SUITE("mpi") {
     // more than the finest level's tolerance between the centres (measured below).
     const std::string defaults = " fit " + input.string() + " --offset-rel 0.02 --no-anchors --resolution 64 --quiet";
     std::string common = defaults + " --coarse-tol 1e-6";
-    const std::string cli = testing::cliPath();
     auto run = [&](int ranks, const std::string& extra, const std::string& out) {
-      const CliRun r = testing::runCommand(mpirunPrefix() + "-np " + std::to_string(ranks) + " " + cli + common +
-                                           " --coarse-points 1500 " + extra + " -o " + (dir / out).string() + " 2>&1");
-      INFO(r.out << r.err);
-      REQUIRE(r.status == 0);
-      return testing::readJsonFile(dir / out / "report.json");
+      return runFit(dir, ranks, common.substr(1) + " --coarse-points 1500", extra, out);
     };
     const CliRun serial = testing::runCli(common.substr(1) + " -o " + (dir / "serial").string());
     INFO(serial.err);
@@ -260,12 +274,7 @@ TEST_SUITE("mpi") {
       MESSAGE("P = " << ranks << " exact: max |f_P - f_1| = " << error << " (CG tolerance " << cgTolerance << ")");
       CHECK(error <= 10.0 * cgTolerance);
       // Watertight meshes with the serial fit's components and Euler characteristics (genus).
-      REQUIRE(rep["meshes"].size() == one["meshes"].size());
-      for (std::size_t s = 0; s < rep["meshes"].size(); ++s) {
-        CHECK(rep["meshes"][s]["topology"]["watertight"].get<bool>());
-        CHECK(rep["meshes"][s]["topology"]["components"] == one["meshes"][s]["topology"]["components"]);
-        CHECK(rep["meshes"][s]["topology"]["euler_characteristic"] == one["meshes"][s]["topology"]["euler_characteristic"]);
-      }
+      checkSameTopology(rep, one, true);
     }
     // Two runs at P = 4: identical bytes.
     run(4, "--distributed exact", "exact_p4_again");
@@ -290,6 +299,83 @@ TEST_SUITE("mpi") {
     }
     CHECK(local[2] < local[1]);
     CHECK(local[4] < local[2]);
+  }
+
+  TEST_CASE("duplexfit fit --blocks N: N blocks in one process are N ranks' fit; under mpirun the ranks share them") {
+    DUPLEXFIT_REQUIRE_CLI();
+    if (!mpiBuilt()) DUPLEXFIT_SKIP("this build has no MPI (DUPLEXFIT_WITH_MPI=OFF or MPI not found)");
+    if (!haveMpirun()) DUPLEXFIT_SKIP("mpirun is not installed (Debian: openmpi-bin)");
+#ifdef DUPLEXFIT_SANITIZED
+    DUPLEXFIT_SKIP("Open MPI's own allocations are reported as leaks by LeakSanitizer; the Release suite runs it");
+#endif
+    const fs::path dir = testing::scratchDir("mpi", "blocks");
+    Points normals;
+    const Points p = testing::fibonacciSphere(6000, 0.5, &normals);
+    const PointSet cloud(p, normals);
+    const fs::path input = dir / "sphere_6k.ply";
+    writePointCloud(input.string(), cloud);
+    const std::string common = "fit " + input.string() + " --offset 0.05 --resolution 48 --quiet --coarse-points 1200 --halo 2";
+    // 8 blocks in one process (no mpirun), 8 ranks, and 2 ranks holding 4 blocks each.
+    const Json b8 = runFit(dir, 0, common, "--blocks 8", "b8");
+    const Json p8 = runFit(dir, 8, common, "", "p8");
+    const Json p2b8 = runFit(dir, 2, common, "--blocks 8", "p2b8");
+    const ImplicitField fb8 = fieldOf(dir, "b8"), fp8 = fieldOf(dir, "p8"), fp2b8 = fieldOf(dir, "p2b8");
+    // Within 10x the CG tolerance (1e-6 of the largest side, 1 here) of each other: the same blocks,
+    // halos and rules; only the order of some sums differs (the reductions of MPI).
+    const double cgTolerance = 1e-6;
+    const double blocksVsRanks = maxDifference(fb8, fp8, cloud), sharedVsRanks = maxDifference(fp2b8, fp8, cloud);
+    MESSAGE("8 blocks in one process vs 8 ranks: max |f - f| = " << blocksVsRanks << "; 2 ranks x 4 blocks: " << sharedVsRanks);
+    CHECK(blocksVsRanks <= 10.0 * cgTolerance);
+    CHECK(sharedVsRanks <= 10.0 * cgTolerance);
+    checkSameTopology(b8, p8, true);
+    checkSameTopology(p2b8, p8, true);
+    for (const Json* rep : {&b8, &p2b8}) {
+      const Json& d = (*rep)["distributed"];
+      CHECK(d["blocks"].get<int>() == 8);
+      CHECK(d["owned_once"].get<bool>());
+      REQUIRE(d["per_block"].size() == 8);
+      std::size_t owned = 0;
+      for (std::size_t b = 0; b < 8; ++b) {
+        const Json& block = d["per_block"][b];
+        CHECK(block["block"].get<std::size_t>() == b);
+        CHECK(block["unknowns"].get<std::size_t>() > 0);
+        CHECK(block["peak_bytes"].get<std::uint64_t>() > 0);
+        owned += block["points"].get<std::size_t>();
+      }
+      CHECK(owned == 6000);
+    }
+    CHECK(b8["distributed"]["ranks"].get<int>() == 1);
+    REQUIRE(b8["distributed"]["per_rank"].size() == 1);
+    CHECK(b8["distributed"]["per_rank"][0]["blocks"].get<int>() == 8);
+    REQUIRE(p2b8["distributed"]["per_rank"].size() == 2);
+    for (const Json& r : p2b8["distributed"]["per_rank"]) CHECK(r["blocks"].get<int>() == 4);
+    CHECK(p8["distributed"]["blocks"].get<int>() == 8);
+    // Block by block the same decomposition: per block and level the same unknowns as the rank's.
+    for (std::size_t b = 0; b < 8; ++b) {
+      const Json& lb = b8["distributed"]["per_block"][b]["levels"];
+      const Json& lp = p8["distributed"]["per_block"][b]["levels"];
+      REQUIRE(lb.size() == lp.size());
+      for (std::size_t k = 0; k < lb.size(); ++k) {
+        if (lb[k]["gathered"].get<bool>()) continue;
+        CHECK(lb[k]["unknowns"] == lp[k]["unknowns"]);
+        CHECK(lb[k]["owned_centres"] == lp[k]["owned_centres"]);
+      }
+    }
+
+    // Refused, with nothing written: --blocks 0, --blocks with exact mode, fewer blocks than ranks.
+    for (const std::string& bad : {std::string("--blocks 0"), std::string("--blocks 4 --distributed exact")}) {
+      const CliRun r = testing::runCommand(testing::cliPath() + " " + common + " " + bad + " -o " + (dir / "bad").string() + " 2>&1");
+      INFO(bad << ": " << r.out << r.err);
+      CHECK(r.status == 1);
+      CHECK((r.out + r.err).find("--blocks") != std::string::npos);
+      CHECK(!fs::exists(dir / "bad"));
+    }
+    const CliRun few = testing::runCommand(mpirunPrefix() + "-np 4 " + testing::cliPath() + " " + common + " --blocks 2 -o " +
+                                           (dir / "few").string() + " 2>&1");
+    INFO(few.out << few.err);
+    CHECK(few.status != 0);
+    CHECK((few.out + few.err).find("2 blocks for 4 ranks") != std::string::npos);
+    CHECK(!fs::exists(dir / "few" / "report.json"));
   }
 
   TEST_CASE("mpirun duplexfit fit: a bad input stops every rank with a clear error and writes nothing") {
