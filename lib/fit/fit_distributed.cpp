@@ -439,11 +439,9 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       if (units > 1) notify(interrupter, FitStage::Constraints, k, levels, unitName + "constraints");
       detail::LevelPoints level;
       std::vector<char> ownedPoint;  // per level point: this unit owns it
-      std::vector<char> inSystem;    // per level point: within g·σ_k of an owned one
       if (gathered) {
         level = k < levels ? detail::gatheredCentroids(comm, u, nu, box, k) : detail::LevelPoints{lp, ln};
         ownedPoint.assign(static_cast<std::size_t>(level.positions.rows()), 1);
-        inSystem = ownedPoint;
       } else {
         // The block's data: with one block per rank all the rank's rows, else those near the block's own.
         std::vector<char> core(rowBlock.size());
@@ -475,24 +473,6 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
           level = detail::LevelPoints{std::move(bp), std::move(bn)};
           ownedPoint = std::move(ownedRow);
         }
-        // Level points within g·σ_k of an owned one are in the block's system.
-        std::vector<Eigen::Index> ownedRows;
-        for (std::size_t i = 0; i < ownedPoint.size(); ++i) {
-          if (ownedPoint[i] != 0) ownedRows.push_back(static_cast<Eigen::Index>(i));
-        }
-        inSystem.assign(ownedPoint.size(), 0);
-        if (exact) {
-          inSystem = ownedPoint;  // the rank's rows of the global system: its owned centres
-        } else if (!ownedRows.empty()) {
-          const NeighborIndex ownedIndex(rowsOf(level.positions, ownedRows));
-          const NeighborLists nearest = ownedIndex.knnSearch(level.positions, 1);
-          for (std::size_t i = 0; i < inSystem.size(); ++i) {
-            if (nearest.offsets[i + 1] == nearest.offsets[i]) continue;
-            const auto q = static_cast<Eigen::Index>(nearest.indices[static_cast<std::size_t>(nearest.offsets[i])]);
-            const double d = (level.positions.row(static_cast<Eigen::Index>(i)) - level.positions.row(ownedRows[static_cast<std::size_t>(q)])).norm();
-            inSystem[i] = d <= dist.halo * sigma ? 1 : 0;
-          }
-        }
       }
       dl.levelPoints = static_cast<std::size_t>(level.positions.rows());
 
@@ -507,11 +487,33 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       co.medial = options.medialConstraints;
       detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals, co);
       const Eigen::Index mergedCentres = c.centres.rows();
-      // The unit's system: the centres of the level points in it; anchors (one block, or gathered levels).
+      // The unit's system: its owned centres (those of its level points) and, in local mode, every centre
+      // within g·σ_k of an owned one, by position: an offset centre lies |δ| from its source, so on a thin
+      // part it neighbours centres whose sources are across the part (the data radius, (g+1)σ_k + 2 max|δ|,
+      // holds their sources). Exact mode: the owned centres only (the rank's rows of the global system).
+      // Anchors: one block, or gathered levels.
       if (!gathered) {
+        std::vector<char> inSystem(static_cast<std::size_t>(c.centres.rows()), 0);
+        std::vector<Eigen::Index> ownedRows;
+        for (Eigen::Index r = 0; r < c.centres.rows(); ++r) {
+          if (ownedPoint[static_cast<std::size_t>(c.sources[static_cast<std::size_t>(r)])] != 0) {
+            inSystem[static_cast<std::size_t>(r)] = 1;
+            ownedRows.push_back(r);
+          }
+        }
+        if (!exact && !ownedRows.empty()) {
+          const NeighborIndex ownedIndex(rowsOf(c.centres, ownedRows));
+          const NeighborLists nearest = ownedIndex.knnSearch(c.centres, 1);
+          for (std::size_t i = 0; i < inSystem.size(); ++i) {
+            if (inSystem[i] != 0 || nearest.offsets[i + 1] == nearest.offsets[i]) continue;
+            const auto q = static_cast<Eigen::Index>(nearest.indices[static_cast<std::size_t>(nearest.offsets[i])]);
+            const double d = (c.centres.row(static_cast<Eigen::Index>(i)) - c.centres.row(ownedRows[static_cast<std::size_t>(q)])).norm();
+            inSystem[i] = d <= dist.halo * sigma ? 1 : 0;
+          }
+        }
         std::vector<Eigen::Index> keep;
         for (Eigen::Index r = 0; r < c.centres.rows(); ++r) {
-          if (inSystem[static_cast<std::size_t>(c.sources[static_cast<std::size_t>(r)])] != 0) keep.push_back(r);
+          if (inSystem[static_cast<std::size_t>(r)] != 0) keep.push_back(r);
         }
         if (static_cast<Eigen::Index>(keep.size()) != c.centres.rows()) {
           std::vector<Eigen::Index> newRow(static_cast<std::size_t>(c.centres.rows()), -1);
