@@ -13,7 +13,7 @@ Two parts, each optional:
 usage: bench/scaling.py [--duplexfit build/cli/duplexfit] [--sampler build/bench/duplexfit-sample-cloud]
                         [--data ../shared/data] [--cloud fandisk_550k] [--ranks 1,2,3,4] [--blocks 4,16]
                         [--big-mesh fandisk] [--big-points 20000000] [--big-blocks 16] [--offset 0.025]
-                        [--resolution 256] [--fit-args "..."] [--skip-ranks] [--skip-big] [--json FILE]
+                        [--resolution 256] [--fit-args="..."] [--skip-ranks] [--skip-big] [--json FILE]
 Markdown tables to stdout, progress to stderr. Set OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 to run mpirun as root.
 """
