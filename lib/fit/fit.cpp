@@ -151,6 +151,20 @@ double detail::medianSpacing(const Eigen::VectorXd& areas) {
   return std::sqrt(std::max(0.0, a[a.size() / 2]));
 }
 
+detail::ConstraintOptions detail::levelConstraintOptions(const FitOptions& options, const std::vector<double>& deltas,
+                                                        double sigma, int offSurfaceSide) {
+  ConstraintOptions co;
+  co.offsets = deltas;
+  co.offSurfaceDistance = sigma / 10.0;
+  co.offSurfaceSide = offSurfaceSide;
+  co.validityTolerance = options.validityTolerance;
+  co.mergeDistance = options.mergeDistance * sigma;
+  co.dropZeroNormalPoints = options.dropZeroNormalPoints;
+  co.tangentSideTest = options.sideTest;
+  co.medial = options.medialConstraints;
+  return co;
+}
+
 SolverOptions detail::levelSolverOptions(const FitOptions& options, bool finest) {
   SolverOptions so = options.solver;
   if (so.absoluteTolerance == 0.0) so.absoluteTolerance = options.levelTolerance;
@@ -366,15 +380,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     t = Clock::now();
     report(interrupter, {FitStage::Constraints, k, levels, 0, 0.0, ""}, &work);
     detail::LevelPoints level = k < levels ? detail::cellCentroids(u, nu, box, k) : detail::LevelPoints{u, nu};
-    detail::ConstraintOptions co;
-    co.offsets = deltas;
-    co.offSurfaceDistance = sigma / 10.0;
-    co.offSurfaceSide = offSide;
-    co.validityTolerance = options.validityTolerance;
-    co.mergeDistance = options.mergeDistance * sigma;
-    co.dropZeroNormalPoints = options.dropZeroNormalPoints;
-    co.tangentSideTest = options.sideTest;
-    co.medial = options.medialConstraints;
+    detail::ConstraintOptions co = detail::levelConstraintOptions(options, deltas, sigma, offSide);
     if (k == levels) {
       // The finest level's points are the input: search the fit's index of it (built here when the
       // anchors did not need it, and kept for the offset correction).

@@ -5,6 +5,7 @@
 
 #include "duplexfit/fit.hpp"
 #include "duplexfit/linalg.hpp"
+#include "fit/constraints.hpp"
 
 namespace duplexfit::detail {
 
@@ -13,6 +14,10 @@ void checkFitOptions(const FitOptions& o);
 /// The typical sample spacing: the square root of the median point area.
 double medianSpacing(const Eigen::VectorXd& areas);
 
+/// The constraint options of level with support `sigma` (normalised units): the offsets `deltas`, the
+/// off-surface side (−1 outside, 1 inside, 0 none, 2 both) and the fit's tolerances and switches.
+ConstraintOptions levelConstraintOptions(const FitOptions& options, const std::vector<double>& deltas, double sigma,
+                                         int offSurfaceSide);
 /// A level's solver options: options.solver with the absolute tolerance levelTolerance (when it has none)
 /// and, below the finest level, the relative tolerance coarseTolerance.
 SolverOptions levelSolverOptions(const FitOptions& options, bool finest);

@@ -476,16 +476,8 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       }
       dl.levelPoints = static_cast<std::size_t>(level.positions.rows());
 
-      detail::ConstraintOptions co;
-      co.offsets = deltas;
-      co.offSurfaceDistance = sigma / 10.0;
-      co.offSurfaceSide = offSide;
-      co.validityTolerance = options.validityTolerance;
-      co.mergeDistance = options.mergeDistance * sigma;
-      co.dropZeroNormalPoints = options.dropZeroNormalPoints;
-      co.tangentSideTest = options.sideTest;
-      co.medial = options.medialConstraints;
-      detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals, co);
+      detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals,
+                                                            detail::levelConstraintOptions(options, deltas, sigma, offSide));
       const Eigen::Index mergedCentres = c.centres.rows();
       // The unit's system: its owned centres (those of its level points) and, in local mode, every centre
       // within g·σ_k of an owned one, by position: an offset centre lies |δ| from its source, so on a thin

@@ -70,6 +70,13 @@ double maxDifference(const ImplicitField& a, const ImplicitField& b, const Point
   return worst;
 }
 
+// The 6,000-point sphere of radius 0.5 the local-mode and blocks tests fit.
+PointSet sphereCloud() {
+  Points normals;
+  const Points p = testing::fibonacciSphere(6000, 0.5, &normals);
+  return PointSet(p, normals);
+}
+
 // `mpirun -np P duplexfit <common> <extra> -o dir/out` (P = 0: duplexfit alone, without mpirun); requires
 // exit status 0 and returns the report.
 Json runFit(const fs::path& dir, int ranks, const std::string& common, const std::string& extra, const std::string& out) {
@@ -98,6 +105,21 @@ void checkSameTopology(const Json& rep, const Json& reference, bool euler) {
 }
 
 }  // namespace
+
+// At the top of a test case that runs the CLI under mpirun: skips without the CLI, MPI or mpirun, and in the
+// sanitizer build (Open MPI's own allocations are reported as leaks by LeakSanitizer; the Release suite
+// runs these).
+#ifdef DUPLEXFIT_SANITIZED
+#define DUPLEXFIT_SKIP_IF_SANITIZED() \
+  DUPLEXFIT_SKIP("Open MPI's own allocations are reported as leaks by LeakSanitizer; the Release suite runs it")
+#else
+#define DUPLEXFIT_SKIP_IF_SANITIZED() (void)0
+#endif
+#define DUPLEXFIT_REQUIRE_MPIRUN()                                                                      \
+  DUPLEXFIT_REQUIRE_CLI();                                                                              \
+  if (!mpiBuilt()) DUPLEXFIT_SKIP("this build has no MPI (DUPLEXFIT_WITH_MPI=OFF or MPI not found)");  \
+  if (!haveMpirun()) DUPLEXFIT_SKIP("mpirun is not installed (Debian: openmpi-bin)");                  \
+  DUPLEXFIT_SKIP_IF_SANITIZED()
 
 TEST_SUITE("mpi") {
   TEST_CASE("partition: Morton ranges cover every key once, balanced within one histogram bucket") {
@@ -135,16 +157,9 @@ TEST_SUITE("mpi") {
   }
 
   TEST_CASE("mpirun duplexfit fit: P = 1 is the serial fit, every point owned once, local mode's error shrinks with g") {
-    DUPLEXFIT_REQUIRE_CLI();
-    if (!mpiBuilt()) DUPLEXFIT_SKIP("this build has no MPI (DUPLEXFIT_WITH_MPI=OFF or MPI not found)");
-    if (!haveMpirun()) DUPLEXFIT_SKIP("mpirun is not installed (Debian: openmpi-bin)");
-#ifdef DUPLEXFIT_SANITIZED
-    DUPLEXFIT_SKIP("Open MPI's own allocations are reported as leaks by LeakSanitizer; the Release suite runs it");
-#endif
+    DUPLEXFIT_REQUIRE_MPIRUN();
     const fs::path dir = testing::scratchDir("mpi", "sphere");
-    Points normals;
-    const Points p = testing::fibonacciSphere(6000, 0.5, &normals);
-    const PointSet cloud(p, normals);
+    const PointSet cloud = sphereCloud();
     const fs::path input = dir / "sphere_6k.ply";
     writePointCloud(input.string(), cloud);
     const std::string common = " fit " + input.string() + " --offset 0.05 --resolution 48 --quiet";
@@ -203,12 +218,7 @@ TEST_SUITE("mpi") {
   }
 
   TEST_CASE("mpirun duplexfit fit --distributed exact: the single-process field within 10x the CG tolerance at P = 2, 4") {
-    DUPLEXFIT_REQUIRE_CLI();
-    if (!mpiBuilt()) DUPLEXFIT_SKIP("this build has no MPI (DUPLEXFIT_WITH_MPI=OFF or MPI not found)");
-    if (!haveMpirun()) DUPLEXFIT_SKIP("mpirun is not installed (Debian: openmpi-bin)");
-#ifdef DUPLEXFIT_SANITIZED
-    DUPLEXFIT_SKIP("Open MPI's own allocations are reported as leaks by LeakSanitizer; the Release suite runs it");
-#endif
+    DUPLEXFIT_REQUIRE_MPIRUN();
     DUPLEXFIT_SHARED_DATA_DIR(data);
     const fs::path dir = testing::scratchDir("mpi", "exact");
     const fs::path input = fs::path(data) / "clouds" / "fandisk_8k.ply";
@@ -304,16 +314,9 @@ TEST_SUITE("mpi") {
   }
 
   TEST_CASE("duplexfit fit --blocks N: N blocks in one process are N ranks' fit; under mpirun the ranks share them") {
-    DUPLEXFIT_REQUIRE_CLI();
-    if (!mpiBuilt()) DUPLEXFIT_SKIP("this build has no MPI (DUPLEXFIT_WITH_MPI=OFF or MPI not found)");
-    if (!haveMpirun()) DUPLEXFIT_SKIP("mpirun is not installed (Debian: openmpi-bin)");
-#ifdef DUPLEXFIT_SANITIZED
-    DUPLEXFIT_SKIP("Open MPI's own allocations are reported as leaks by LeakSanitizer; the Release suite runs it");
-#endif
+    DUPLEXFIT_REQUIRE_MPIRUN();
     const fs::path dir = testing::scratchDir("mpi", "blocks");
-    Points normals;
-    const Points p = testing::fibonacciSphere(6000, 0.5, &normals);
-    const PointSet cloud(p, normals);
+    const PointSet cloud = sphereCloud();
     const fs::path input = dir / "sphere_6k.ply";
     writePointCloud(input.string(), cloud);
     const std::string common = "fit " + input.string() + " --offset 0.05 --resolution 48 --quiet --coarse-points 1200 --halo 2";
@@ -381,12 +384,7 @@ TEST_SUITE("mpi") {
   }
 
   TEST_CASE("mpirun duplexfit fit: a bad input stops every rank with a clear error and writes nothing") {
-    DUPLEXFIT_REQUIRE_CLI();
-    if (!mpiBuilt()) DUPLEXFIT_SKIP("this build has no MPI");
-    if (!haveMpirun()) DUPLEXFIT_SKIP("mpirun is not installed");
-#ifdef DUPLEXFIT_SANITIZED
-    DUPLEXFIT_SKIP("Open MPI's own allocations are reported as leaks by LeakSanitizer; the Release suite runs it");
-#endif
+    DUPLEXFIT_REQUIRE_MPIRUN();
     const fs::path dir = testing::scratchDir("mpi", "bad");
     const fs::path input = dir / "truncated.ply";
     testing::writeFile(input, "ply\nformat binary_little_endian 1.0\nelement vertex 1000\nproperty float x\nproperty float y\n"
