@@ -302,4 +302,19 @@ struct MeshCheck {
 /// @throws InvalidArgument for an invalid mesh (no faces, bad index, NaN vertex).
 MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options = {});
 
+/// The intersecting triangle pairs as checkMesh counts them (MeshCheck::selfIntersections), without the
+/// topology and quality checks.
+struct SelfIntersections {
+  std::size_t count = 0;  ///< pairs found (a lower bound when `complete` is false)
+  bool complete = true;   ///< every candidate pair was examined (CheckOptions::candidatePairBudget)
+  std::vector<std::pair<std::int64_t, std::int64_t>> pairs;  ///< the first options.listedPairs, sorted
+};
+
+/// checkMesh's self-intersection test alone, over the pairs with at least one face in `faces` (every pair
+/// when `faces` is null; each pair counted once). After moving some vertices of a mesh whose pairs were
+/// all tested, asking about the faces around the moved vertices finds every pair the move can have made.
+/// @throws InvalidArgument for a vertex index or a listed face out of range; MemoryLimitExceeded.
+SelfIntersections findSelfIntersections(const Mesh& mesh, const CheckOptions& options = {},
+                                        const std::vector<std::int64_t>* faces = nullptr);
+
 }  // namespace duplexfit

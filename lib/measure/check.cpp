@@ -337,8 +337,43 @@ MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
   }
   if (!options.selfIntersections) return r;
   r.selfIntersectionsChecked = true;
+  SelfIntersections x = findSelfIntersections(mesh, options);
+  r.selfIntersections = x.count;
+  r.selfIntersectionsComplete = x.complete;
+  r.pairs = std::move(x.pairs);
+  return r;
+}
 
+SelfIntersections findSelfIntersections(const Mesh& mesh, const CheckOptions& options,
+                                        const std::vector<std::int64_t>* faces) {
+  SelfIntersections r;
   const auto nf = static_cast<std::size_t>(mesh.faces.rows());
+  const auto nv = mesh.vertices.rows();
+  for (Eigen::Index i = 0; i < mesh.faces.rows(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      const std::int32_t x = mesh.faces(i, k);
+      if (x < 0 || x >= nv) {
+        throw InvalidArgument("self-intersections: face " + std::to_string(i) + " has vertex index " +
+                              std::to_string(x) + " outside [0, " + std::to_string(nv) + ")");
+      }
+    }
+  }
+  // The faces asked about (every face when `faces` is null); a pair with both faces asked about is counted
+  // by the one that owns it, a pair with one by that one.
+  std::vector<char> asked;
+  if (faces) {
+    asked.assign(nf, 0);
+    for (const std::int64_t i : *faces) {
+      if (i < 0 || static_cast<std::size_t>(i) >= nf) {
+        throw InvalidArgument("self-intersections: face " + std::to_string(i) + " asked about is outside [0, " +
+                              std::to_string(nf) + ")");
+      }
+      asked[static_cast<std::size_t>(i)] = 1;
+    }
+  }
+  if (nf == 0 || (faces && faces->empty())) return r;
+  requireMemory(options.limits, "self-intersection test", 150.0 * static_cast<double>(nf),
+                "the mesh's " + std::to_string(nf) + " faces", "check a simplified mesh (mesh --max-triangles)");
   const std::vector<std::int32_t> welded = weldedIds(mesh);
   std::vector<Tri> tris(nf);
   const std::int32_t* f = mesh.faces.data();
@@ -369,10 +404,7 @@ MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
   for (std::size_t i = 0; i < nf; ++i) {
     if (!tris[i].skip) tested.push_back(static_cast<std::int64_t>(i));
   }
-  if (tested.empty()) {
-    r.selfIntersectionsComplete = true;
-    return r;
-  }
+  if (tested.empty()) return r;
   Mesh testedMesh;
   testedMesh.vertices = mesh.vertices;
   testedMesh.faces.resize(static_cast<Eigen::Index>(tested.size()), 3);
@@ -391,7 +423,8 @@ MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
   bool complete = true;
   measure_detail::ParallelErrors errors;
   const auto nfl = static_cast<long long>(nf);
-#pragma omp parallel default(none) shared(tris, tested, tree, examples, nfl, perFace, listed, errors) \
+  const bool subset = faces != nullptr;
+#pragma omp parallel default(none) shared(tris, tested, tree, examples, nfl, perFace, listed, errors, asked, subset) \
     reduction(+ : count) reduction(&& : complete)
   {
     // Exceptions (bad_alloc) are caught per iteration: one leaving the loop would skip its barrier.
@@ -406,7 +439,7 @@ MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
 #pragma omp for schedule(dynamic, 512)
     for (long long ii = 0; ii < nfl; ++ii) {
       const Tri& s = tris[static_cast<std::size_t>(ii)];
-      if (s.skip) continue;
+      if (s.skip || (subset && !asked[static_cast<std::size_t>(ii)])) continue;
       errors.run([&] {
         Eigen::Vector3d lo, hi;
         for (int c = 0; c < 3; ++c) {
@@ -419,9 +452,11 @@ MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
           const std::int64_t j = tested[static_cast<std::size_t>(k)];
           if (j == ii) continue;
           const Tri& t = tris[static_cast<std::size_t>(j)];
-          // The triangle with the larger tolerance (its box query is the wider one) owns the pair.
-          if (t.tol > s.tol || (t.tol == s.tol && j < ii)) continue;
-          if (!pairIntersect(s, t, s.tol)) continue;
+          // The triangle with the larger tolerance (its box query is the wider one) owns the pair; with a
+          // subset, a face not asked about owns nothing.
+          const bool tAsked = !subset || asked[static_cast<std::size_t>(j)];
+          if (tAsked && (t.tol > s.tol || (t.tol == s.tol && j < ii))) continue;
+          if (!pairIntersect(s, t, tAsked ? s.tol : std::max(s.tol, t.tol))) continue;
           ++count;
           if (listed == 0) continue;
           mine.emplace_back(std::min<std::int64_t>(ii, j), std::max<std::int64_t>(ii, j));
@@ -436,8 +471,8 @@ MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
   errors.rethrow();
   std::sort(examples.begin(), examples.end());
   examples.resize(std::min(examples.size(), listed));
-  r.selfIntersections = count;
-  r.selfIntersectionsComplete = complete;
+  r.count = count;
+  r.complete = complete;
   r.pairs = std::move(examples);
   return r;
 }

@@ -40,7 +40,8 @@ FieldGradientSampler gradientSampler(const FieldEvaluator& evaluator) {
 }  // namespace
 
 void detail::newtonPaths(const FieldGradientSampler& sampler, Points& x, double iso, double side,
-                         std::vector<char>& converged, std::vector<double>& rest, int steps) {
+                         std::vector<char>& converged, std::vector<double>& rest, int steps,
+                         const NewtonStart* start) {
   const Eigen::Index total = x.rows();
   converged.assign(static_cast<std::size_t>(total), 0);
   rest.assign(static_cast<std::size_t>(total), 0.0);
@@ -52,7 +53,12 @@ void detail::newtonPaths(const FieldGradientSampler& sampler, Points& x, double 
   // Each step evaluates only the paths that have not converged yet (most take two or three steps).
   for (int step = 0; step <= steps && !active.empty(); ++step) {
     const auto n = static_cast<Eigen::Index>(active.size());
-    sampler(at, values, gradients);
+    if (step == 0 && start) {
+      values = start->values;
+      gradients = start->gradients;
+    } else {
+      sampler(at, values, gradients);
+    }
     if (values.size() != n || gradients.rows() != n) {
       throw InvalidArgument("level-set deviation: the sampler returned the wrong number of values");
     }

@@ -12,7 +12,13 @@ namespace duplexfit::detail {
 /// its first-order rest |f − iso|/|∇f| ≤ 1e-5·side; then converged[i] = 1 and rest[i] = min(rest, 1e-5·side).
 /// A path that has not converged after `steps` steps (or meets ∇f = 0) keeps converged[i] = 0 and the
 /// position it reached.
+/// `start`, when given, holds f and ∇f at the starting points (rows of x), so that the first step does not
+/// evaluate them again.
+struct NewtonStart {
+  const Eigen::VectorXd& values;
+  const Points& gradients;
+};
 void newtonPaths(const FieldGradientSampler& sampler, Points& x, double iso, double side, std::vector<char>& converged,
-                 std::vector<double>& rest, int steps = 10);
+                 std::vector<double>& rest, int steps = 10, const NewtonStart* start = nullptr);
 
 }  // namespace duplexfit::detail

@@ -169,17 +169,26 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
     if (values.size() != q.rows() || gradients.rows() != q.rows()) {
       throw InvalidArgument("projection onto the level set: the sampler returned the wrong number of values");
     }
+    std::vector<Eigen::Index> goRow;
     for (std::size_t i = 0; i < list.size(); ++i) {
       const auto r = static_cast<Eigen::Index>(i);
       const double g = gradients.row(r).norm();
       // Within 1e-5 of the side already (1% of the deviation target), or at a flat point: left where it is.
       if (!(g >= 1e-6) || std::abs(values[r] - iso) / g <= 1e-5 * side) continue;
       go.push_back(list[i]);
+      goRow.push_back(r);
     }
     if (go.empty()) return;
-    Points x(static_cast<Eigen::Index>(go.size()), 3);
-    for (std::size_t i = 0; i < go.size(); ++i) x.row(static_cast<Eigen::Index>(i)) = w.v[static_cast<std::size_t>(go[i])].transpose();
-    detail::newtonPaths(sampler, x, iso, side, converged, rest, kNewtonSteps);
+    const auto ng = static_cast<Eigen::Index>(go.size());
+    Points x(ng, 3), startGradients(ng, 3);
+    Eigen::VectorXd startValues(ng);
+    for (Eigen::Index i = 0; i < ng; ++i) {
+      x.row(i) = q.row(goRow[static_cast<std::size_t>(i)]);
+      startValues[i] = values[goRow[static_cast<std::size_t>(i)]];
+      startGradients.row(i) = gradients.row(goRow[static_cast<std::size_t>(i)]);
+    }
+    const detail::NewtonStart known{startValues, startGradients};
+    detail::newtonPaths(sampler, x, iso, side, converged, rest, kNewtonSteps, &known);
     for (std::size_t i = 0; i < go.size(); ++i) {
       const Vec p = x.row(static_cast<Eigen::Index>(i)).transpose();
       const Vec& now = w.v[static_cast<std::size_t>(go[i])];
@@ -225,6 +234,7 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
     std::vector<std::pair<double, Index>> marked;
     std::vector<Index> far;
     std::vector<double> farFirst;
+    std::vector<Eigen::Index> farRow;
     for (std::size_t i = 0; i < measure.size(); ++i) {
       const auto r = static_cast<Eigen::Index>(i);
       const double g = gradients.row(r).norm();
@@ -232,13 +242,22 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
       if (e > o.target) {
         far.push_back(measure[i]);
         farFirst.push_back(e);
+        farRow.push_back(r);
       }
     }
     if (!far.empty()) {
-      Points x(static_cast<Eigen::Index>(far.size()), 3), start(static_cast<Eigen::Index>(far.size()), 3);
-      for (std::size_t i = 0; i < far.size(); ++i) start.row(static_cast<Eigen::Index>(i)) = w.centre(far[i]).transpose();
+      const auto nfar = static_cast<Eigen::Index>(far.size());
+      Points x(nfar, 3), start(nfar, 3), startGradients(nfar, 3);
+      Eigen::VectorXd startValues(nfar);
+      for (Eigen::Index i = 0; i < nfar; ++i) {
+        const Eigen::Index r = farRow[static_cast<std::size_t>(i)];
+        start.row(i) = q.row(r);
+        startValues[i] = values[r];
+        startGradients.row(i) = gradients.row(r);
+      }
       x = start;
-      detail::newtonPaths(sampler, x, iso, side, converged, rest, kNewtonSteps);
+      const detail::NewtonStart known{startValues, startGradients};
+      detail::newtonPaths(sampler, x, iso, side, converged, rest, kNewtonSteps, &known);
       for (std::size_t i = 0; i < far.size(); ++i) {
         const auto r = static_cast<Eigen::Index>(i);
         const double e = converged[i] ? (x.row(r) - start.row(r)).norm() + rest[i] : farFirst[i];
@@ -410,23 +429,30 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
     co.limits = o.limits;
     std::vector<char> back(w.v.size(), 0);
     std::size_t reverted = 0;
+    // Round 0 tests every pair. A pair can only start (or keep) intersecting when one of its faces has a
+    // vertex that moved since, so each later round tests only the faces around the vertices the round
+    // before moved back (every pair of theirs, against the whole mesh).
+    std::vector<std::int64_t> asked;
     for (int round = 0; round < 12; ++round) {
-      const MeshCheck c = checkMesh(out.mesh, co);
-      if (round == 0) rep.selfIntersectionsFound = c.selfIntersections;
+      const SelfIntersections c = findSelfIntersections(out.mesh, co, round == 0 ? nullptr : &asked);
+      if (round == 0) rep.selfIntersectionsFound = c.count;
       std::vector<Index> seeds;
       for (const auto& [x, y] : c.pairs) {
         for (const std::int64_t face : {x, y}) {
           for (const Index vtx : w.f[static_cast<std::size_t>(face)]) seeds.push_back(vtx);
         }
       }
-      if (c.quality.float32DegenerateFaces > 0) {
-        for (std::size_t face = 0; face < w.f.size(); ++face) {
-          const Tri& t = w.f[face];
-          if (float32Degenerate(w.v[static_cast<std::size_t>(t[0])], w.v[static_cast<std::size_t>(t[1])],
-                                w.v[static_cast<std::size_t>(t[2])])) {
-            for (const Index vtx : t) seeds.push_back(vtx);
-          }
+      const auto degenerate = [&](std::size_t face) {
+        const Tri& t = w.f[face];
+        if (float32Degenerate(w.v[static_cast<std::size_t>(t[0])], w.v[static_cast<std::size_t>(t[1])],
+                              w.v[static_cast<std::size_t>(t[2])])) {
+          for (const Index vtx : t) seeds.push_back(vtx);
         }
+      };
+      if (round == 0) {
+        for (std::size_t face = 0; face < w.f.size(); ++face) degenerate(face);
+      } else {
+        for (const std::int64_t face : asked) degenerate(static_cast<std::size_t>(face));
       }
       if (seeds.empty()) break;
       if (reverted == w.v.size()) break;  // the extracted surface itself (its own crossings are not ours)
@@ -447,12 +473,18 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
         ring.resize(w.v.size());
         for (std::size_t i = 0; i < w.v.size(); ++i) ring[i] = static_cast<Index>(i);
       }
+      asked.clear();
       for (const Index vtx : ring) {
         if (back[static_cast<std::size_t>(vtx)]) continue;
         back[static_cast<std::size_t>(vtx)] = 1;
         w.v[static_cast<std::size_t>(vtx)] = w.extracted[static_cast<std::size_t>(vtx)];
         ++reverted;
+        for (const Index face : w.vf[static_cast<std::size_t>(vtx)]) asked.push_back(face);
       }
+      // Nothing moved back: what is left crosses on the extracted surface itself.
+      if (asked.empty()) break;
+      std::sort(asked.begin(), asked.end());
+      asked.erase(std::unique(asked.begin(), asked.end()), asked.end());
       write();
     }
     rep.reverted = reverted;

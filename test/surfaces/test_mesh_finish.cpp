@@ -5,6 +5,9 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <limits>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -373,3 +376,93 @@ TEST_CASE("projection moves a coarse sphere onto its level set and splits it to 
   broken.faces(3, 1) = static_cast<std::int32_t>(m.vertices.rows());
   CHECK_THROWS_WITH_AS(projectToLevelSet(sampler, broken, iso, side, o), doctest::Contains("face 3"), InvalidArgument);
 }
+
+namespace {
+
+/// A flat n × n grid of squares over [x0, x0 + w] × [0, 1] at height z, two triangles each, facing +z.
+Mesh gridSheet(double x0, double w, double z, int n) {
+  Mesh m;
+  m.vertices.resize((n + 1) * (n + 1), 3);
+  for (int j = 0; j <= n; ++j) {
+    for (int i = 0; i <= n; ++i) m.vertices.row(j * (n + 1) + i) << x0 + w * i / n, 1.0 * j / n, z;
+  }
+  m.faces.resize(2 * n * n, 3);
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const int a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
+      m.faces.row(2 * (j * n + i)) << a, b, d;
+      m.faces.row(2 * (j * n + i) + 1) << a, d, c;
+    }
+  }
+  return m;
+}
+
+Mesh joined(const Mesh& a, const Mesh& b) {
+  Mesh m;
+  m.vertices.resize(a.vertices.rows() + b.vertices.rows(), 3);
+  m.vertices << a.vertices, b.vertices;
+  m.faces.resize(a.faces.rows() + b.faces.rows(), 3);
+  m.faces << a.faces, b.faces.array() + static_cast<std::int32_t>(a.vertices.rows());
+  return m;
+}
+
+}  // namespace
+
+TEST_SUITE("surfaces") {
+
+TEST_CASE("projection undoes the moves that make two sheets cross, testing only what moved after the first round") {
+  // Two sheets at z = 0.15 and 0.25, overlapping over x in [0.5, 1]; the level set z = 0.2 lies between
+  // them, so the projection lays both on one plane there (coplanar overlapping triangles intersect).
+  const Mesh m = joined(gridSheet(0.0, 1.0, 0.15, 10), gridSheet(0.5, 1.0, 0.25, 10));
+  const FieldGradientSampler sampler = [](const Points& q, Eigen::VectorXd& v, Points& g) {
+    v = 0.2 - q.col(2).array();
+    g = Points::Zero(q.rows(), 3);
+    g.col(2).setConstant(-1.0);
+  };
+  REQUIRE(findSelfIntersections(m).count == 0);
+  ProjectOptions keep;
+  keep.undoSelfIntersections = false;
+  const ProjectResult crossed = projectToLevelSet(sampler, m, 0.0, 1.0, keep);
+  CHECK(crossed.report.moved == static_cast<std::size_t>(m.vertices.rows()));
+  CheckOptions all;
+  all.listedPairs = std::numeric_limits<std::size_t>::max();
+  const SelfIntersections full = findSelfIntersections(crossed.mesh, all);
+  CHECK(full.complete);
+  CHECK(full.count > 50);
+  CHECK(full.pairs.size() == full.count);
+  CHECK(checkMesh(crossed.mesh, all).selfIntersections == full.count);
+  // A subset finds exactly the pairs with a face in it, each once.
+  std::vector<std::int64_t> subset;
+  for (std::int64_t f = 0; f < crossed.mesh.faces.rows(); f += 3) subset.push_back(f);
+  std::vector<std::pair<std::int64_t, std::int64_t>> expected;
+  for (const auto& p : full.pairs) {
+    if (p.first % 3 == 0 || p.second % 3 == 0) expected.push_back(p);
+  }
+  const SelfIntersections part = findSelfIntersections(crossed.mesh, all, &subset);
+  CHECK(part.count == expected.size());
+  CHECK(part.pairs == expected);
+  const std::vector<std::int64_t> none;
+  CHECK(findSelfIntersections(crossed.mesh, all, &none).count == 0);
+  std::vector<std::int64_t> outside{crossed.mesh.faces.rows()};
+  CHECK_THROWS_AS(findSelfIntersections(crossed.mesh, all, &outside), InvalidArgument);
+
+  // With the undo: no pair is left (tested over the whole mesh), the sheets stay on the level set away
+  // from the overlap, and not everything went back.
+  const ProjectResult p = projectToLevelSet(sampler, m, 0.0, 1.0, ProjectOptions{});
+  CHECK(p.report.selfIntersectionsFound == full.count);
+  CHECK(p.report.reverted > 0);
+  CHECK(p.report.reverted < static_cast<std::size_t>(m.vertices.rows()));
+  CHECK(findSelfIntersections(p.mesh, all).count == 0);
+  CHECK(checkMesh(p.mesh).quality.float32DegenerateFaces == 0);
+  int farOnLevel = 0, far = 0;
+  for (Eigen::Index v = 0; v < p.mesh.vertices.rows(); ++v) {
+    const double x = p.mesh.vertices(v, 0);
+    if (x > 0.25 && x < 1.25) continue;
+    ++far;
+    farOnLevel += std::abs(p.mesh.vertices(v, 2) - 0.2) <= 1e-5 ? 1 : 0;
+  }
+  CHECK(far > 40);
+  CHECK(farOnLevel == far);
+}
+
+}  // TEST_SUITE
