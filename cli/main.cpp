@@ -82,6 +82,9 @@ reference:
                        caps flipped: no triangle is degenerate once written in float32)
       --deviation-samples N  measure each mesh's deviation at N evenly strided vertices and face centres
                        (default 100000; 0: all of them)
+      --fast-projection  predict most face centres from the vertices' tangent planes instead of
+                       evaluating them (about 20% less projection time; detail smaller than a triangle
+                       can stay beyond the 0.05% split target)
       --format ply|obj|stl          mesh format (default ply)
       --drop-zero-normals           drop points whose normal is zero instead of keeping them at f = 0
       --side-test      also reject offset/off-surface points behind their nearest point's tangent
@@ -126,7 +129,7 @@ reference:
                      --shell --iso D (D > 0): the printable shell between the levels 0 and D instead,
                      with --drain-hole X,Y,Z,R | auto[,R] as fit's
                      [--max-triangles N] [--max-error E] [--no-clean] [--deviation-samples N]
-                     [--max-memory SIZE]
+                     [--fast-projection] [--max-memory SIZE]
 )";
 const char* kHelpTail = R"(  --version, --help
 

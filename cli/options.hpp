@@ -191,6 +191,9 @@ inline void addMeshFinishOptions(CLI::App& app, MeshFinishOptions& o) {
   app.add_flag_callback("--no-clean", [&o] { o.clean = false; }, "keep slivers and float32-degenerate triangles");
   app.add_flag_callback("--no-project", [&o] { o.project = false; },
                         "leave the vertices where the grid put them (no projection onto the level set, no splits)");
+  app.add_flag_callback("--fast-projection", [&o] { o.predictCentres = true; },
+                        "predict most face centres from the vertices' tangent planes instead of evaluating them "
+                        "(less projection time; detail smaller than a triangle can stay beyond the target)");
   app.add_option_function<std::string>(
          "--deviation-samples",
          [&o](const std::string& v) {

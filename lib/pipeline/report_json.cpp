@@ -128,6 +128,8 @@ void addFinishReport(Json& m, const MeshFinishReport& f) {
                          {"splits", p.splits},
                          {"rounds", p.rounds},
                          {"faces_left_beyond_target", p.markedLeft},
+                         {"centres_evaluated", p.centresEvaluated},
+                         {"centres_predicted", p.centresPredicted},
                          {"self_intersections_found", p.selfIntersectionsFound},
                          {"reverted", p.reverted},
                          {"seconds", p.seconds}};

@@ -41,8 +41,9 @@ FieldGradientSampler gradientSampler(const FieldEvaluator& evaluator) {
 
 void detail::newtonPaths(const FieldGradientSampler& sampler, Points& x, double iso, double side,
                          std::vector<char>& converged, std::vector<double>& rest, int steps,
-                         const NewtonStart* start) {
+                         const NewtonStart* start, Points* endGradients) {
   const Eigen::Index total = x.rows();
+  if (endGradients) *endGradients = Points::Zero(total, 3);
   converged.assign(static_cast<std::size_t>(total), 0);
   rest.assign(static_cast<std::size_t>(total), 0.0);
   std::vector<Eigen::Index> active(static_cast<std::size_t>(total));
@@ -73,6 +74,7 @@ void detail::newtonPaths(const FieldGradientSampler& sampler, Points& x, double 
       if (remaining <= 1e-5 * side || std::abs(values[i] - iso) <= 1e-6 * side) {
         converged[static_cast<std::size_t>(id)] = 1;
         rest[static_cast<std::size_t>(id)] = std::min(remaining, 1e-5 * side);
+        if (endGradients) endGradients->row(id) = g;
         continue;
       }
       if (step == steps || !(g2 > 0.0)) continue;  // not converged
@@ -261,6 +263,7 @@ FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField
       po.target = options.projectTarget * side;
       po.maxMove = 3.0 * cell;
       po.maxFaces = options.simplify.maxTriangles;
+      po.estimateCentres = options.predictCentres;
       ProjectResult p = projectToLevelSet(sampler, mesh, isoValues[i], side, po);
       mesh = std::move(p.mesh);
       rep.project = p.report;

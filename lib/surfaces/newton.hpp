@@ -13,12 +13,14 @@ namespace duplexfit::detail {
 /// A path that has not converged after `steps` steps (or meets ∇f = 0) keeps converged[i] = 0 and the
 /// position it reached.
 /// `start`, when given, holds f and ∇f at the starting points (rows of x), so that the first step does not
-/// evaluate them again.
+/// evaluate them again. `endGradients`, when given, receives ∇f at the final x of every converged path
+/// (rows of the others are left zero).
 struct NewtonStart {
   const Eigen::VectorXd& values;
   const Points& gradients;
 };
 void newtonPaths(const FieldGradientSampler& sampler, Points& x, double iso, double side, std::vector<char>& converged,
-                 std::vector<double>& rest, int steps = 10, const NewtonStart* start = nullptr);
+                 std::vector<double>& rest, int steps = 10, const NewtonStart* start = nullptr,
+                 Points* endGradients = nullptr);
 
 }  // namespace duplexfit::detail
