@@ -1,53 +1,49 @@
 // duplexfit-field-bench FIELD.dpxf MESH [--device SPEC] [--repeat N] [--points N]: the cost of evaluating a
 // fitted field (f alone, then f and ∇f) at the vertices of a mesh of it (the near-surface points that mesh
 // sampling, projection and the deviation measure evaluate), on one device; prints the minimum of N runs in
-// microseconds per point and the field's centres per level. docs/benchmarks.md ("Field evaluation") keeps
-// the figures.
+// microseconds per point. docs/benchmarks.md ("Projection cost", "Field evaluation per point") keeps the
+// figures.
 #include <algorithm>
-#include <chrono>
-#include <cstdlib>
 #include <iostream>
 #include <limits>
 #include <string>
 
+#include <CLI/CLI.hpp>
+
 #include "duplexfit/device.hpp"
 #include "duplexfit/field.hpp"
 #include "duplexfit/io.hpp"
+#include "duplexfit/timer.hpp"
 
 int main(int argc, char** argv) {
-  if (argc < 3) {
-    std::cerr << "usage: duplexfit-field-bench FIELD.dpxf MESH [--device SPEC] [--repeat N] [--points N]\n";
-    return 1;
-  }
+  CLI::App app{"duplexfit-field-bench: microseconds per point for f and grad f at a mesh's vertices"};
+  std::string fieldPath, meshPath, spec;
+  int repeat = 3;
+  long long points = 0;
+  app.add_option("FIELD", fieldPath, "a saved field (.dpxf)")->required();
+  app.add_option("MESH", meshPath, "a mesh whose vertices are the query points")->required();
+  app.add_option("--device", spec, "device spec (default: the default device)");
+  app.add_option("--repeat", repeat, "runs of each evaluation; the minimum is printed")->check(CLI::PositiveNumber);
+  app.add_option("--points", points, "use the first N vertices (0: all)")->check(CLI::NonNegativeNumber);
+  CLI11_PARSE(app, argc, argv);
   try {
-    std::string spec;
-    int repeat = 3;
-    long points = 0;
-    for (int i = 3; i + 1 < argc; i += 2) {
-      const std::string a = argv[i];
-      if (a == "--device") spec = argv[i + 1];
-      else if (a == "--repeat") repeat = std::max(1, std::atoi(argv[i + 1]));
-      else if (a == "--points") points = std::atol(argv[i + 1]);
-      else throw std::runtime_error("unknown option " + a);
-    }
-    const duplexfit::ImplicitField field = duplexfit::ImplicitField::load(argv[1]);
-    const duplexfit::Mesh mesh = duplexfit::readMesh(argv[2]);
+    const duplexfit::ImplicitField field = duplexfit::ImplicitField::load(fieldPath);
+    const duplexfit::Mesh mesh = duplexfit::readMesh(meshPath);
     duplexfit::Points q = mesh.vertices;
-    if (points > 0 && points < q.rows()) q.conservativeResize(points, 3);
+    if (points > 0 && points < q.rows()) q.conservativeResize(static_cast<Eigen::Index>(points), 3);
     const duplexfit::Device device = spec.empty() ? duplexfit::Device::openDefault() : duplexfit::Device::open(spec);
     device.compileKernels(duplexfit::Precision::Float);
-    const auto t0 = std::chrono::steady_clock::now();
+    const duplexfit::Timer setup;
     const duplexfit::FieldEvaluator evaluator(device, field);
-    const double setup = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::cout << "device " << device.description() << ", " << field.levels().size() << " levels, " << q.rows()
-              << " points, evaluator set-up " << setup << " s\n";
+              << " points, evaluator set-up " << setup.seconds() << " s\n";
     for (const auto d : {duplexfit::FieldDerivatives::None, duplexfit::FieldDerivatives::Gradient}) {
       double best = std::numeric_limits<double>::infinity();
       double checksum = 0.0;
       for (int r = 0; r < repeat; ++r) {
-        const auto t = std::chrono::steady_clock::now();
+        const duplexfit::Timer t;
         const duplexfit::FieldSamples s = evaluator.evaluate(q, d);
-        best = std::min(best, std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count());
+        best = std::min(best, t.seconds());
         checksum = s.values.cwiseAbs().sum();
       }
       std::cout << (d == duplexfit::FieldDerivatives::None ? "value    " : "gradient ") << 1e6 * best / static_cast<double>(q.rows())

@@ -313,7 +313,9 @@ struct SelfIntersections {
 /// checkMesh's self-intersection test alone, over the pairs with at least one face in `faces` (every pair
 /// when `faces` is null; each pair counted once). After moving some vertices of a mesh whose pairs were
 /// all tested, asking about the faces around the moved vertices finds every pair the move can have made.
-/// @throws InvalidArgument for a vertex index or a listed face out of range; MemoryLimitExceeded.
+/// A mesh with no faces has none; any other mesh must pass validateMesh.
+/// @throws InvalidArgument for an invalid mesh (validateMesh) or a listed face out of range;
+/// MemoryLimitExceeded.
 SelfIntersections findSelfIntersections(const Mesh& mesh, const CheckOptions& options = {},
                                         const std::vector<std::int64_t>* faces = nullptr);
 

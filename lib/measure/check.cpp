@@ -298,6 +298,9 @@ bool pairIntersect(const Tri& s, const Tri& t, double tol) {
   return true;  // the same three vertices: a duplicate face
 }
 
+SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& options,
+                                      const std::vector<std::int64_t>* faces);
+
 }  // namespace
 
 MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
@@ -337,7 +340,7 @@ MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
   }
   if (!options.selfIntersections) return r;
   r.selfIntersectionsChecked = true;
-  SelfIntersections x = findSelfIntersections(mesh, options);
+  SelfIntersections x = selfIntersectionsOf(mesh, options, nullptr);
   r.selfIntersections = x.count;
   r.selfIntersectionsComplete = x.complete;
   r.pairs = std::move(x.pairs);
@@ -346,18 +349,18 @@ MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
 
 SelfIntersections findSelfIntersections(const Mesh& mesh, const CheckOptions& options,
                                         const std::vector<std::int64_t>* faces) {
+  if (mesh.faces.rows() == 0) return {};
+  validateMesh(mesh, "self-intersections");
+  return selfIntersectionsOf(mesh, options, faces);
+}
+
+namespace {
+
+/// findSelfIntersections on a mesh validateMesh has accepted.
+SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& options,
+                                      const std::vector<std::int64_t>* faces) {
   SelfIntersections r;
   const auto nf = static_cast<std::size_t>(mesh.faces.rows());
-  const auto nv = mesh.vertices.rows();
-  for (Eigen::Index i = 0; i < mesh.faces.rows(); ++i) {
-    for (int k = 0; k < 3; ++k) {
-      const std::int32_t x = mesh.faces(i, k);
-      if (x < 0 || x >= nv) {
-        throw InvalidArgument("self-intersections: face " + std::to_string(i) + " has vertex index " +
-                              std::to_string(x) + " outside [0, " + std::to_string(nv) + ")");
-      }
-    }
-  }
   // The faces asked about (every face when `faces` is null); a pair with both faces asked about is counted
   // by the one that owns it, a pair with one by that one.
   std::vector<char> asked;
@@ -476,5 +479,7 @@ SelfIntersections findSelfIntersections(const Mesh& mesh, const CheckOptions& op
   r.pairs = std::move(examples);
   return r;
 }
+
+}  // namespace
 
 }  // namespace duplexfit

@@ -157,10 +157,9 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
   std::vector<double> rest;
   Eigen::VectorXd values;
   Points gradients, endGradients;
-  // ∇f at each vertex where it is now, when known (the vertex was evaluated there or its Newton path
-  // ended there): the first round predicts most faces' centres from them (estimateCentres).
+  // With estimateCentres: ∇f at each vertex where it is now (the vertex was evaluated there or its Newton
+  // path ended there), zero where not known; the first round predicts most faces' centres from them.
   std::vector<Vec> vg;
-  std::vector<char> vgKnown;
   // Projects the listed vertices (in index order, each move checked against the positions so far).
   const auto project = [&](const std::vector<Index>& list) {
     std::vector<Index> go;
@@ -173,20 +172,16 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
     if (values.size() != q.rows() || gradients.rows() != q.rows()) {
       throw InvalidArgument("projection onto the level set: the sampler returned the wrong number of values");
     }
-    if (vg.size() < w.v.size()) {
-      vg.resize(w.v.size(), Vec::Zero());
-      vgKnown.resize(w.v.size(), 0);
-    }
+    if (o.estimateCentres && vg.size() < w.v.size()) vg.resize(w.v.size(), Vec::Zero());
     std::vector<Eigen::Index> goRow;
     for (std::size_t i = 0; i < list.size(); ++i) {
       const auto r = static_cast<Eigen::Index>(i);
       const auto v = static_cast<std::size_t>(list[i]);
       const double g = gradients.row(r).norm();
-      vgKnown[v] = g >= 1e-6 ? 1 : 0;
-      vg[v] = gradients.row(r).transpose();
       // Within 1e-5 of the side already (1% of the deviation target), or at a flat point: left where it is.
-      if (!(g >= 1e-6) || std::abs(values[r] - iso) / g <= 1e-5 * side) continue;
-      vgKnown[v] = 0;  // known again only where its path ends
+      const bool stays = !(g >= 1e-6) || std::abs(values[r] - iso) / g <= 1e-5 * side;
+      if (o.estimateCentres) vg[v] = stays && g >= 1e-6 ? Vec(gradients.row(r).transpose()) : Vec::Zero();
+      if (stays) continue;
       go.push_back(list[i]);
       goRow.push_back(r);
     }
@@ -200,7 +195,8 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
       startGradients.row(i) = gradients.row(goRow[static_cast<std::size_t>(i)]);
     }
     const detail::NewtonStart known{startValues, startGradients};
-    detail::newtonPaths(sampler, x, iso, side, converged, rest, kNewtonSteps, &known, &endGradients);
+    detail::newtonPaths(sampler, x, iso, side, converged, rest, kNewtonSteps, &known,
+                        o.estimateCentres ? &endGradients : nullptr);
     for (std::size_t i = 0; i < go.size(); ++i) {
       const Vec p = x.row(static_cast<Eigen::Index>(i)).transpose();
       const Vec& now = w.v[static_cast<std::size_t>(go[i])];
@@ -214,9 +210,8 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
         const Vec to = now + part * (p - now);
         if (moveAcceptable(w, go[i], to, cosMax, o.minAngle)) {
           w.v[static_cast<std::size_t>(go[i])] = to;
-          if (part == 1.0) {
+          if (o.estimateCentres && part == 1.0) {
             vg[static_cast<std::size_t>(go[i])] = endGradients.row(static_cast<Eigen::Index>(i)).transpose();
-            vgKnown[static_cast<std::size_t>(go[i])] = 1;
           }
           placed = true;
           rep.partial += part < 1.0 ? 1 : 0;
@@ -253,7 +248,7 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
       for (const Index face : measure) {
         const Tri& t = w.f[static_cast<std::size_t>(face)];
         bool known = true;
-        for (const Index v : t) known = known && vgKnown[static_cast<std::size_t>(v)];
+        for (const Index v : t) known = known && vg[static_cast<std::size_t>(v)].squaredNorm() > 0.0;
         if (known) {
           const Vec c = w.centre(face);
           Vec d = Vec::Zero();
