@@ -34,8 +34,9 @@ def log(msg):
     print(msg, file=sys.stderr, flush=True)
 
 
-def timed(cmd, env=None):
-    """Runs cmd; returns (wall seconds, peak RSS in MB or None, completed process)."""
+def timed(cmd, env=None, stderr_to=None):
+    """Runs cmd; returns (wall seconds, peak RSS in MB or None, completed process). With stderr_to (an open
+    file), the command's stderr (its progress) goes there instead of being captured."""
     time_bin = shutil.which("time") or ("/usr/bin/time" if os.path.exists("/usr/bin/time") else None)
     rss_file = None
     if time_bin:
@@ -43,7 +44,7 @@ def timed(cmd, env=None):
         os.close(fd)
         cmd = [time_bin, "-f", "%M", "-o", rss_file] + cmd
     start = time.monotonic()
-    proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=stderr_to or subprocess.PIPE, text=True)
     wall = time.monotonic() - start
     rss = None
     if rss_file:
@@ -54,7 +55,7 @@ def timed(cmd, env=None):
             rss = None
         os.unlink(rss_file)
     if proc.returncode != 0:
-        raise RuntimeError(" ".join(cmd) + " failed:\n" + proc.stdout[-2000:] + proc.stderr[-2000:])
+        raise RuntimeError(" ".join(cmd) + " failed:\n" + proc.stdout[-2000:] + (proc.stderr or "")[-2000:])
     return wall, rss, proc
 
 
@@ -127,9 +128,13 @@ def main():
             log("big: sampling %d points of %s" % (args.big_points, mesh))
             sample_s, sample_rss, _ = timed([args.sampler, mesh, str(args.big_points), big])
             out = os.path.join(work, "big_fit")
-            log("big: fitting with --blocks %d" % args.big_blocks)
+            log("big: fitting with --blocks %d (its progress follows)" % args.big_blocks)
+            # One process: it gets every core (the one-thread limits above are for the ranks sharing them),
+            # unless the caller set the limits.
+            big_env = dict(os.environ)
             wall, rss, _ = timed([args.duplexfit, "fit", big, "--offset", str(args.offset), "--blocks", str(args.big_blocks),
-                                  "--resolution", str(args.resolution), "-o", out] + args.fit_args.split(), env)
+                                  "--resolution", str(args.resolution), "-o", out] + args.fit_args.split(), big_env,
+                                 stderr_to=sys.stderr)
             with open(os.path.join(out, "report.json")) as f:
                 report = json.load(f)
             log("big: measuring the zero mesh against " + mesh)
