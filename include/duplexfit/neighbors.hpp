@@ -10,6 +10,8 @@
 
 namespace duplexfit {
 
+class Interrupter;
+
 /// Neighbour lists of q queries in CSR form: the neighbours of query i are
 /// indices[offsets[i] .. offsets[i+1]), with their Euclidean distances, sorted by (distance, index).
 struct NeighborLists {
@@ -33,11 +35,13 @@ class NeighborIndex {
 
   std::size_t size() const noexcept;
   /// All points p with ‖p − q‖ < radius for each query q (the query itself included when it is in the set).
-  /// @throws InvalidArgument when radius ≤ 0 or not finite.
-  NeighborLists radiusSearch(const Points& queries, double radius) const;
-  /// The k nearest points of each query (fewer when the set is smaller).
-  /// @throws InvalidArgument when k ≤ 0.
-  NeighborLists knnSearch(const Points& queries, int k) const;
+  /// `interrupter` (may be null) is polled from the calling thread when the search starts and then about
+  /// every 20 ms, so that a search over millions of queries can be stopped.
+  /// @throws InvalidArgument when radius ≤ 0 or not finite; Cancelled when the interrupter says stop.
+  NeighborLists radiusSearch(const Points& queries, double radius, Interrupter* interrupter = nullptr) const;
+  /// The k nearest points of each query (fewer when the set is smaller); `interrupter` as for radiusSearch.
+  /// @throws InvalidArgument when k ≤ 0; Cancelled.
+  NeighborLists knnSearch(const Points& queries, int k, Interrupter* interrupter = nullptr) const;
 
  private:
   struct Impl;

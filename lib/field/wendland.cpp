@@ -96,7 +96,8 @@ void checkAssemblyArguments(const Points& centres, double sigma, double lambda) 
 /// The assembly over an index of `centres` (rowOf empty) or of a superset of them (rowOf maps each
 /// indexed point to its centre row, −1 for points that are not centres).
 CsrMatrix assemble(const Points& centres, double sigma, double lambda, const NeighborIndex& index,
-                   const std::vector<Index>& rowOf, const detail::NonZeroCheck& beforeAllocating = {}) {
+                   const std::vector<Index>& rowOf, const detail::NonZeroCheck& beforeAllocating = {},
+                   Interrupter* interrupter = nullptr) {
   const auto n = static_cast<Index>(centres.rows());
   CsrMatrix a;
   a.rows = n;
@@ -121,7 +122,7 @@ CsrMatrix assemble(const Points& centres, double sigma, double lambda, const Nei
   for (Index start = 0; start < n; start += std::min(kChunkRows, n - start)) {
     const Index len = std::min(kChunkRows, n - start);
     block = centres.middleRows(start, len);
-    const NeighborLists lists = index.radiusSearch(block, sigma);
+    const NeighborLists lists = index.radiusSearch(block, sigma, interrupter);
 
     // Entries per row (neighbours that are centres), as offsets into this chunk's part of the matrix.
     rowStart.assign(static_cast<std::size_t>(len) + 1, 0);
@@ -199,20 +200,22 @@ CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
 
 namespace detail {
 
-CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda, const NonZeroCheck& beforeAllocating) {
+CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda, const NonZeroCheck& beforeAllocating,
+                           Interrupter* interrupter) {
   checkAssemblyArguments(centres, sigma, lambda);
   const NeighborIndex index(centres);
-  return assemble(centres, sigma, lambda, index, {}, beforeAllocating);
+  return assemble(centres, sigma, lambda, index, {}, beforeAllocating, interrupter);
 }
 
 CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda, const NeighborIndex& superset,
-                           const std::vector<Index>& rowOf, const NonZeroCheck& beforeAllocating) {
+                           const std::vector<Index>& rowOf, const NonZeroCheck& beforeAllocating,
+                           Interrupter* interrupter) {
   checkAssemblyArguments(centres, sigma, lambda);
   if (rowOf.size() != superset.size()) {
     throw InvalidArgument("assembleWendland: the row map has " + std::to_string(rowOf.size()) +
                           " entries for an index of " + std::to_string(superset.size()) + " points");
   }
-  return assemble(centres, sigma, lambda, superset, rowOf, beforeAllocating);
+  return assemble(centres, sigma, lambda, superset, rowOf, beforeAllocating, interrupter);
 }
 
 }  // namespace detail

@@ -18,11 +18,14 @@ namespace duplexfit::detail {
 /// the one assembled over an index of the centres alone.
 /// @throws InvalidArgument as assembleWendland, or when rowOf.size() ≠ superset.size().
 /// `beforeAllocating` (when set) is called with the sampled estimate of the non-zeros before the CSR
-/// arrays are reserved: the fit's memory check (ResourceLimits), which may throw.
+/// arrays are reserved: the fit's memory check (ResourceLimits), which may throw. The radius searches
+/// poll `interrupter` (may be null; @throws Cancelled).
 using NonZeroCheck = std::function<void(std::size_t estimatedNonZeros)>;
 CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda, const NeighborIndex& superset,
-                           const std::vector<Index>& rowOf, const NonZeroCheck& beforeAllocating = {});
-/// assembleWendland(centres, sigma, lambda) over an index of the centres, with the check above.
-CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda, const NonZeroCheck& beforeAllocating);
+                           const std::vector<Index>& rowOf, const NonZeroCheck& beforeAllocating = {},
+                           Interrupter* interrupter = nullptr);
+/// assembleWendland(centres, sigma, lambda) over an index of the centres, with the check and poll above.
+CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda, const NonZeroCheck& beforeAllocating,
+                           Interrupter* interrupter = nullptr);
 
 }  // namespace duplexfit::detail

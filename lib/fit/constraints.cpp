@@ -41,7 +41,7 @@ struct Companions {
 // than 2|step| or the bisector of a crease, and kept with its true distance to the cloud as target, when
 // s ≥ minMedial·|step|. The δ level is then constrained exactly where the plain test leaves it free.
 Companions validCompanions(const Points& points, const Points& normals, const NeighborIndex& index, double step,
-                           double eta, bool sideTest, bool medial, double minMedial) {
+                           double eta, bool sideTest, bool medial, double minMedial, Interrupter* interrupter) {
   Companions out;
   std::vector<Eigen::Index> source;
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
@@ -57,7 +57,7 @@ Companions validCompanions(const Points& points, const Points& normals, const Ne
   // Distance from each query row of `qs` to its nearest point other than its source (and that point).
   auto nearestOther = [&](const Points& qs, const std::vector<Eigen::Index>& src, std::vector<double>& dist,
                           std::vector<Eigen::Index>& other) {
-    const NeighborLists nn = index.knnSearch(qs, 2);
+    const NeighborLists nn = index.knnSearch(qs, 2, interrupter);
     dist.assign(src.size(), std::numeric_limits<double>::infinity());
     other.assign(src.size(), -1);
     for (std::size_t k = 0; k < src.size(); ++k) {
@@ -151,7 +151,7 @@ std::vector<double> worldOffsets(const std::vector<double>& offsets, bool relati
 Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta, bool sideTest,
                          std::vector<Eigen::Index>& sources) {
   const NeighborIndex index(points);
-  Companions c = validCompanions(points, normals, index, step, eta, sideTest, false, 0.0);
+  Companions c = validCompanions(points, normals, index, step, eta, sideTest, false, 0.0, nullptr);
   sources = std::move(c.sources);
   return std::move(c.positions);
 }
@@ -195,7 +195,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   };
   for (const double delta : options.offsets) {
     Companions c = validCompanions(points, normals, index, delta, options.validityTolerance, options.tangentSideTest,
-                                   options.medial, options.minMedialFraction);
+                                   options.medial, options.minMedialFraction, options.interrupter);
     blockTargets.push_back(Eigen::VectorXd::Constant(c.positions.rows(), delta));
     blockSources.push_back(c.sources);
     out.offsetCandidates.push_back(c.candidates);
@@ -209,7 +209,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   else if (options.offSurfaceSide != 0) sides = {options.offSurfaceSide};
   for (const int side : sides) {
     Companions c = validCompanions(points, normals, index, side * d, options.validityTolerance, options.tangentSideTest,
-                                   options.medial, options.minMedialFraction);
+                                   options.medial, options.minMedialFraction, options.interrupter);
     blockTargets.push_back(Eigen::VectorXd::Constant(c.positions.rows(), side * d));
     blockSources.push_back(c.sources);
     out.offSurfaceCandidates += c.candidates;
@@ -242,7 +242,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   std::vector<char> keep(static_cast<std::size_t>(total), 1);
   if (options.mergeDistance > 0.0 && total > 0) {
     out.candidateIndex = std::make_unique<NeighborIndex>(all);
-    const NeighborLists close = out.candidateIndex->radiusSearch(all, options.mergeDistance);
+    const NeighborLists close = out.candidateIndex->radiusSearch(all, options.mergeDistance, options.interrupter);
     for (Eigen::Index i = 0; i < total; ++i) {
       const auto ui = static_cast<std::size_t>(i);
       for (auto e = close.offsets[ui]; e < close.offsets[ui + 1]; ++e) {

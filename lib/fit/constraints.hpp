@@ -29,6 +29,8 @@ struct ConstraintOptions {
   /// An index of exactly `points` to search instead of building one (the fit's index of its input at
   /// the finest level); null: build one.
   const NeighborIndex* pointsIndex = nullptr;
+  /// Polled inside the neighbour searches (may be null): a search over millions of points can be stopped.
+  Interrupter* interrupter = nullptr;
 };
 
 struct LevelConstraints {

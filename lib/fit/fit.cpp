@@ -152,8 +152,9 @@ double detail::medianSpacing(const Eigen::VectorXd& areas) {
 }
 
 detail::ConstraintOptions detail::levelConstraintOptions(const FitOptions& options, const std::vector<double>& deltas,
-                                                        double sigma, int offSurfaceSide) {
+                                                        double sigma, int offSurfaceSide, Interrupter* interrupter) {
   ConstraintOptions co;
+  co.interrupter = interrupter;
   co.offsets = deltas;
   co.offSurfaceDistance = sigma / 10.0;
   co.offSurfaceSide = offSurfaceSide;
@@ -345,8 +346,8 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
                     what.str(), "fit a sparser cloud (or fewer --sample-points of a mesh input), or fewer offsets");
     };
     CsrMatrix a = superset != nullptr ? detail::assembleWendland(centres, sigma, lambda, *superset->candidateIndex,
-                                                                 superset->candidateRow, budget)
-                                      : detail::assembleWendland(centres, sigma, lambda, budget);
+                                                                 superset->candidateRow, budget, interrupter)
+                                      : detail::assembleWendland(centres, sigma, lambda, budget, interrupter);
     lr.nonZeros = a.nonZeros();
     lr.secondsAssembly = secondsSince(t0);
 
@@ -380,7 +381,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     t = Clock::now();
     report(interrupter, {FitStage::Constraints, k, levels, 0, 0.0, ""}, &work);
     detail::LevelPoints level = k < levels ? detail::cellCentroids(u, nu, box, k) : detail::LevelPoints{u, nu};
-    detail::ConstraintOptions co = detail::levelConstraintOptions(options, deltas, sigma, offSide);
+    detail::ConstraintOptions co = detail::levelConstraintOptions(options, deltas, sigma, offSide, interrupter);
     if (k == levels) {
       // The finest level's points are the input: search the fit's index of it (built here when the
       // anchors did not need it, and kept for the offset correction).

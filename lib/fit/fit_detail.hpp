@@ -15,9 +15,10 @@ void checkFitOptions(const FitOptions& o);
 double medianSpacing(const Eigen::VectorXd& areas);
 
 /// The constraint options of level with support `sigma` (normalised units): the offsets `deltas`, the
-/// off-surface side (−1 outside, 1 inside, 0 none, 2 both) and the fit's tolerances and switches.
+/// off-surface side (−1 outside, 1 inside, 0 none, 2 both) and the fit's tolerances and switches; the
+/// neighbour searches poll `interrupter` (may be null).
 ConstraintOptions levelConstraintOptions(const FitOptions& options, const std::vector<double>& deltas, double sigma,
-                                         int offSurfaceSide);
+                                         int offSurfaceSide, Interrupter* interrupter);
 /// A level's solver options: options.solver with the absolute tolerance levelTolerance (when it has none)
 /// and, below the finest level, the relative tolerance coarseTolerance.
 SolverOptions levelSolverOptions(const FitOptions& options, bool finest);

@@ -477,7 +477,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       dl.levelPoints = static_cast<std::size_t>(level.positions.rows());
 
       detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals,
-                                                            detail::levelConstraintOptions(options, deltas, sigma, offSide));
+                                                            detail::levelConstraintOptions(options, deltas, sigma, offSide, interrupter));
       const Eigen::Index mergedCentres = c.centres.rows();
       // The unit's system: its owned centres (those of its level points) and, in local mode, every centre
       // within g·σ_k of an owned one, by position: an offset centre lies |δ| from its source, so on a thin
@@ -581,8 +581,8 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
                         what.str(), gathered ? "raise --coarse-points less, or fit a sparser cloud" : "use more --blocks");
         };
         const bool reuseIndex = c.candidateIndex && c.centres.rows() == mergedCentres;
-        const CsrMatrix a = reuseIndex ? detail::assembleWendland(c.centres, sigma, lambda, *c.candidateIndex, c.candidateRow, budget)
-                                       : detail::assembleWendland(c.centres, sigma, lambda, budget);
+        const CsrMatrix a = reuseIndex ? detail::assembleWendland(c.centres, sigma, lambda, *c.candidateIndex, c.candidateRow, budget, interrupter)
+                                       : detail::assembleWendland(c.centres, sigma, lambda, budget, interrupter);
         nonZeros = a.nonZeros();
         lr.secondsAssembly += secondsSince(tu);
         tu = Clock::now();

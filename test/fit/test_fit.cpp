@@ -224,5 +224,18 @@ TEST_SUITE("fit") {
     often.solver.progressInterval = 1;
     inSolve.stopWhen = [](const testing::RecordingInterrupter& i) { return i.events.back().iteration >= 2; };
     CHECK_THROWS_WITH_AS(fit(Device::reference(), cloud, often, &inSolve), doctest::Contains("solve"), Cancelled);
+    // A cancellation inside the finest level's constraints (its neighbour searches poll the interrupter
+    // between the stage's own events) stops the fit there: no later stage is reported.
+    testing::RecordingInterrupter inConstraints;
+    std::size_t constraintsPolls = 0;
+    inConstraints.stopWhen = [&constraintsPolls](const testing::RecordingInterrupter& i) {
+      const FitEvent& last = i.events.back();
+      if (last.stage != FitStage::Constraints || last.level != last.levels) return false;
+      return ++constraintsPolls >= 2;  // the stage's own poll, then the first poll inside a search
+    };
+    CHECK_THROWS_WITH_AS(fit(Device::reference(), cloud, o, &inConstraints), doctest::Contains("neighbour search"),
+                         Cancelled);
+    CHECK(constraintsPolls == 2);
+    CHECK(inConstraints.events.back().stage == FitStage::Constraints);
   }
 }

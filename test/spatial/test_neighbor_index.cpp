@@ -8,11 +8,13 @@
 #include <cstdint>
 #include <limits>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/interrupter.hpp"
 #include "duplexfit/neighbors.hpp"
 
 namespace {
@@ -254,5 +256,50 @@ TEST_SUITE("spatial") {
     const NeighborIndex empty{Points(0, 3)};
     CHECK_THROWS_AS((void)empty.radiusSearch(queries, -1.0), InvalidArgument);
     CHECK_THROWS_AS((void)empty.knnSearch(queries, 0), InvalidArgument);
+  }
+
+  TEST_CASE("neighbors: an interrupter is polled during a search and stops it with Cancelled") {
+    // A counting interrupter that says stop from its `stopAt`-th poll on (0: never).
+    class Counting final : public duplexfit::Interrupter {
+     public:
+      explicit Counting(int stopAt) : stopAt_(stopAt) {}
+      bool wasInterrupted(int) override { return ++polls == stopAt_ || (stopAt_ > 0 && polls > stopAt_); }
+      int polls = 0;
+
+     private:
+      int stopAt_;
+    };
+    const Points points = randomPoints(20000, 21u);
+    const Points queries = randomPoints(50000, 22u);
+    const NeighborIndex index(points);
+    // Not interrupted: polled at least once (when the search starts), and the lists are those of a search
+    // without an interrupter.
+    Counting never(0);
+    const NeighborLists plain = index.knnSearch(queries, 3);
+    const NeighborLists polled = index.knnSearch(queries, 3, &never);
+    CHECK(never.polls >= 1);
+    CHECK(polled.offsets == plain.offsets);
+    CHECK(polled.indices == plain.indices);
+    Counting neverRadius(0);
+    const NeighborLists radiusPolled = index.radiusSearch(queries, 0.02, &neverRadius);
+    CHECK(neverRadius.polls >= 1);
+    CHECK(radiusPolled.indices == index.radiusSearch(queries, 0.02).indices);
+    // Interrupted at the first poll: no result, Cancelled naming the search.
+    Counting first(1);
+    CHECK_THROWS_WITH_AS((void)index.knnSearch(queries, 3, &first), doctest::Contains("neighbour search"),
+                         duplexfit::Cancelled);
+    CHECK(first.polls == 1);
+    Counting firstRadius(1);
+    CHECK_THROWS_AS((void)index.radiusSearch(queries, 0.02, &firstRadius), duplexfit::Cancelled);
+    // The index stays usable after a cancelled search.
+    const NeighborLists again = index.knnSearch(queries, 3);
+    CHECK(again.indices == plain.indices);
+    // An interrupter that throws: its exception comes out of the search.
+    class Throwing final : public duplexfit::Interrupter {
+     public:
+      bool wasInterrupted(int) override { throw std::runtime_error("interrupter failed"); }
+    };
+    Throwing throwing;
+    CHECK_THROWS_WITH_AS((void)index.knnSearch(queries, 3, &throwing), "interrupter failed", std::runtime_error);
   }
 }
