@@ -12,6 +12,7 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/neighbors.hpp"
 #include "spatial/morton.hpp"
+#include "spatial/point_bvh.hpp"
 
 namespace duplexfit::detail {
 
@@ -24,6 +25,75 @@ struct Companions {
   Points medial;                       ///< rejected candidates moved onto the medial surface
   std::vector<double> medialTargets;   ///< their signed true distances
   std::vector<Eigen::Index> medialSources;  ///< the point each medial point came from
+};
+
+/// The nearest point of P other than a query's source, from the k-d tree or the tight-box BVH
+/// (point_bvh.hpp), whichever is faster for the step: the two give the same point and distance. A k-d
+/// tree query |step| from a surface costs about (|step| / spacing)² points, the BVH's grows slowly.
+/// duplexfit-neighbors-bench, µs a query on 2 threads (tree / BVH), spacing the median nearest-neighbour
+/// distance: fandisk_550k, |step| = 13, 26, 52 spacings: 0.9 / 3.2, 1.9 / 3.3, 3.9 / 4.2; a 1/9 slab of a
+/// 20M-point fandisk sample, 16, 32, 48, 64, 100, 200 spacings: 1.8 / 4.8, 4.5 / 6.0, 6.5 / 5.8,
+/// 9.9 / 6.4, 29.6 / 8.3, 89.9 / 12.8 (docs/benchmarks.md). So the BVH serves steps beyond kBvhSpacings.
+class NearestOther {
+ public:
+  static constexpr double kBvhSpacings = 45.0;
+
+  NearestOther(const Points& points, Interrupter* interrupter) : points_(points), interrupter_(interrupter) {}
+
+  /// dist[k], other[k]: the nearest point to row k of qs other than src[k] (+∞, −1: none); `step`: the
+  /// largest |distance| of the queries from their sources.
+  void operator()(const Points& qs, const std::vector<Eigen::Index>& src, double step, std::vector<double>& dist,
+                  std::vector<Eigen::Index>& other) {
+    if (std::abs(step) > kBvhSpacings * spacing()) {
+      if (!bvh_) bvh_ = std::make_unique<PointBvh>(points_);
+      bvh_->nearestOther(qs, src, dist, other, interrupter_);
+      return;
+    }
+    const NeighborLists nn = tree().knnSearch(qs, 2, interrupter_);
+    dist.assign(src.size(), std::numeric_limits<double>::infinity());
+    other.assign(src.size(), -1);
+    for (std::size_t k = 0; k < src.size(); ++k) {
+      for (auto e = nn.offsets[k]; e < nn.offsets[k + 1]; ++e) {
+        if (nn.indices[static_cast<std::size_t>(e)] != src[k]) {
+          dist[k] = nn.distances[static_cast<std::size_t>(e)];
+          other[k] = nn.indices[static_cast<std::size_t>(e)];
+          break;
+        }
+      }
+    }
+  }
+
+ private:
+  const NeighborIndex& tree() {
+    if (!tree_) tree_ = std::make_unique<NeighborIndex>(points_);
+    return *tree_;
+  }
+  /// The median distance from 1,024 evenly strided points to their nearest other point (0 when all coincide).
+  double spacing() {
+    if (spacing_ >= 0.0) return spacing_;
+    const Eigen::Index n = points_.rows();
+    const Eigen::Index count = std::min<Eigen::Index>(n, 1024);
+    spacing_ = 0.0;
+    if (count < 2) return spacing_;
+    Points sample(count, 3);
+    for (Eigen::Index s = 0; s < count; ++s) sample.row(s) = points_.row(s * n / count);
+    const NeighborLists nn = tree().knnSearch(sample, 2);
+    std::vector<double> d;
+    for (Eigen::Index s = 0; s < count; ++s) {
+      const auto e = nn.offsets[static_cast<std::size_t>(s) + 1] - 1;  // the second nearest (the first: itself)
+      if (nn.count(static_cast<std::size_t>(s)) == 2) d.push_back(nn.distances[static_cast<std::size_t>(e)]);
+    }
+    if (d.empty()) return spacing_;
+    std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+    spacing_ = d[d.size() / 2];
+    return spacing_;
+  }
+
+  const Points& points_;
+  Interrupter* interrupter_;
+  std::unique_ptr<NeighborIndex> tree_;
+  std::unique_ptr<PointBvh> bvh_;
+  double spacing_ = -1.0;
 };
 
 // Candidates q = p_i + step·ν_i for points with a non-zero normal, kept when the nearest point p_j of P
@@ -40,8 +110,8 @@ struct Companions {
 // components, mean deviation 0.61% vs 0.58% of δ), i.e. onto the local medial surface of a part thinner
 // than 2|step| or the bisector of a crease, and kept with its true distance to the cloud as target, when
 // s ≥ minMedial·|step|. The δ level is then constrained exactly where the plain test leaves it free.
-Companions validCompanions(const Points& points, const Points& normals, const NeighborIndex& index, double step,
-                           double eta, bool sideTest, bool medial, double minMedial, Interrupter* interrupter) {
+Companions validCompanions(const Points& points, const Points& normals, NearestOther& nearestOther, double step,
+                           double eta, bool sideTest, bool medial, double minMedial) {
   Companions out;
   std::vector<Eigen::Index> source;
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
@@ -54,25 +124,9 @@ Companions validCompanions(const Points& points, const Points& normals, const Ne
     q.row(static_cast<Eigen::Index>(k)) = points.row(i) + step * normals.row(i);
   }
   const double sign = step > 0.0 ? 1.0 : -1.0;
-  // Distance from each query row of `qs` to its nearest point other than its source (and that point).
-  auto nearestOther = [&](const Points& qs, const std::vector<Eigen::Index>& src, std::vector<double>& dist,
-                          std::vector<Eigen::Index>& other) {
-    const NeighborLists nn = index.knnSearch(qs, 2, interrupter);
-    dist.assign(src.size(), std::numeric_limits<double>::infinity());
-    other.assign(src.size(), -1);
-    for (std::size_t k = 0; k < src.size(); ++k) {
-      for (auto e = nn.offsets[k]; e < nn.offsets[k + 1]; ++e) {
-        if (nn.indices[static_cast<std::size_t>(e)] != src[k]) {
-          dist[k] = nn.distances[static_cast<std::size_t>(e)];
-          other[k] = nn.indices[static_cast<std::size_t>(e)];
-          break;
-        }
-      }
-    }
-  };
   std::vector<double> dist;
   std::vector<Eigen::Index> other;
-  nearestOther(q, source, dist, other);
+  nearestOther(q, source, step, dist, other);
   const double limit = std::abs(step) * (1.0 - eta);
   std::vector<char> keep(source.size(), 0);
   std::vector<std::size_t> rejected;
@@ -105,7 +159,7 @@ Companions validCompanions(const Points& points, const Points& normals, const Ne
       const double s = 0.5 * (lo[r] + hi[r]);
       mq.row(static_cast<Eigen::Index>(r)) = points.row(src[r]) + sign * s * normals.row(src[r]);
     }
-    nearestOther(mq, src, dist, other);
+    nearestOther(mq, src, step, dist, other);
     for (std::size_t r = 0; r < m; ++r) {
       const double s = 0.5 * (lo[r] + hi[r]);
       (dist[r] >= s * (1.0 - eta) ? lo[r] : hi[r]) = s;
@@ -114,7 +168,7 @@ Companions validCompanions(const Points& points, const Points& normals, const Ne
   for (std::size_t r = 0; r < m; ++r) {
     mq.row(static_cast<Eigen::Index>(r)) = points.row(src[r]) + sign * lo[r] * normals.row(src[r]);
   }
-  nearestOther(mq, src, dist, other);
+  nearestOther(mq, src, step, dist, other);
   std::vector<Eigen::Vector3d> pos;
   for (std::size_t r = 0; r < m; ++r) {
     if (!(lo[r] >= minMedial * std::abs(step)) || lo[r] <= 0.0) continue;
@@ -150,8 +204,8 @@ std::vector<double> worldOffsets(const std::vector<double>& offsets, bool relati
 
 Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta, bool sideTest,
                          std::vector<Eigen::Index>& sources) {
-  const NeighborIndex index(points);
-  Companions c = validCompanions(points, normals, index, step, eta, sideTest, false, 0.0, nullptr);
+  NearestOther index(points, nullptr);
+  Companions c = validCompanions(points, normals, index, step, eta, sideTest, false, 0.0);
   sources = std::move(c.sources);
   return std::move(c.positions);
 }
@@ -163,13 +217,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
     if (!options.dropZeroNormalPoints || normals.row(i).squaredNorm() > 0.0) surfaceRows.push_back(i);
   }
-  std::unique_ptr<NeighborIndex> ownIndex;
-  if (options.pointsIndex == nullptr) ownIndex = std::make_unique<NeighborIndex>(points);
-  const NeighborIndex& index = options.pointsIndex != nullptr ? *options.pointsIndex : *ownIndex;
-  if (index.size() != static_cast<std::size_t>(points.rows())) {
-    throw InvalidArgument("buildConstraints: the given index holds " + std::to_string(index.size()) + " points, not " +
-                          std::to_string(points.rows()));
-  }
+  NearestOther index(points, options.interrupter);
 
   // Blocks in priority order (surface, offsets, off-surface, then the medial points of both); each row
   // has its own target.
@@ -195,7 +243,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   };
   for (const double delta : options.offsets) {
     Companions c = validCompanions(points, normals, index, delta, options.validityTolerance, options.tangentSideTest,
-                                   options.medial, options.minMedialFraction, options.interrupter);
+                                   options.medial, options.minMedialFraction);
     blockTargets.push_back(Eigen::VectorXd::Constant(c.positions.rows(), delta));
     blockSources.push_back(c.sources);
     out.offsetCandidates.push_back(c.candidates);
@@ -209,7 +257,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   else if (options.offSurfaceSide != 0) sides = {options.offSurfaceSide};
   for (const int side : sides) {
     Companions c = validCompanions(points, normals, index, side * d, options.validityTolerance, options.tangentSideTest,
-                                   options.medial, options.minMedialFraction, options.interrupter);
+                                   options.medial, options.minMedialFraction);
     blockTargets.push_back(Eigen::VectorXd::Constant(c.positions.rows(), side * d));
     blockSources.push_back(c.sources);
     out.offSurfaceCandidates += c.candidates;

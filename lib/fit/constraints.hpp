@@ -26,9 +26,6 @@ struct ConstraintOptions {
   /// Move companions rejected by the distance test onto the medial surface (FitOptions::medialConstraints).
   bool medial = false;
   double minMedialFraction = 0.1;  ///< ... kept when moved back to at least this fraction of the step
-  /// An index of exactly `points` to search instead of building one (the fit's index of its input at
-  /// the finest level); null: build one.
-  const NeighborIndex* pointsIndex = nullptr;
   /// Polled inside the neighbour searches (may be null): a search over millions of points can be stopped.
   Interrupter* interrupter = nullptr;
 };

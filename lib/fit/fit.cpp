@@ -381,13 +381,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     t = Clock::now();
     report(interrupter, {FitStage::Constraints, k, levels, 0, 0.0, ""}, &work);
     detail::LevelPoints level = k < levels ? detail::cellCentroids(u, nu, box, k) : detail::LevelPoints{u, nu};
-    detail::ConstraintOptions co = detail::levelConstraintOptions(options, deltas, sigma, offSide, interrupter);
-    if (k == levels) {
-      // The finest level's points are the input: search the fit's index of it (built here when the
-      // anchors did not need it, and kept for the offset correction).
-      if (!inputIndex) inputIndex = std::make_unique<NeighborIndex>(u);
-      co.pointsIndex = inputIndex.get();
-    }
+    const detail::ConstraintOptions co = detail::levelConstraintOptions(options, deltas, sigma, offSide, interrupter);
     detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals, co);
     const Eigen::Index mergedCentres = c.centres.rows();  // before any anchors
     lr.offsetMedial = c.offsetMedial;
