@@ -1,13 +1,110 @@
 // Helpers fit() shares with fitDistributed().
 #pragma once
 
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
 #include <Eigen/Core>
 
 #include "duplexfit/fit.hpp"
+#include "duplexfit/interrupter.hpp"
 #include "duplexfit/linalg.hpp"
 #include "fit/constraints.hpp"
 
 namespace duplexfit::detail {
+
+/// The fit's progress as a percentage of its work, for the callers' fractions and ETAs. A level's work is
+/// taken as proportional to its centres; the levels not reached yet are estimated from the last one known
+/// (4x a level, a surface's cells at half the size, capped at the input's size plus its offset points).
+/// Within a level: constraints 0–30%, right-hand sides 30–45%, assembly 45–55%, the solve 55–100% (by
+/// log(residual) / log(tolerance), the fraction of the residual's decades the CG has gained). A level
+/// solved in units (the distributed fit's blocks, one after the other) spreads these stages over each unit
+/// in turn: unit j of n covers [j/n, (j + 1)/n) of the level.
+class FitWork {
+ public:
+  FitWork(int levels, Eigen::Index points, std::size_t offsets)
+      : cap_(static_cast<double>(points) * static_cast<double>(2 + offsets)), known_(static_cast<std::size_t>(std::max(levels, 0)), -1.0) {}
+  /// Level k (1-based) has `centres` unknowns.
+  void setLevel(int k, Eigen::Index centres) {
+    if (k >= 1 && static_cast<std::size_t>(k) <= known_.size()) known_[static_cast<std::size_t>(k - 1)] = static_cast<double>(centres);
+  }
+  /// Percent done at `within` ∈ [0, 1] of level k (never less than before); -1 outside the levels.
+  int percent(int k, double within) const {
+    if (k < 1 || known_.empty()) return -1;
+    double last = 8.0, done = 0.0, total = 0.0;
+    for (std::size_t i = 0; i < known_.size(); ++i) {
+      const double w = known_[i] >= 0.0 ? known_[i] : std::min(cap_, 4.0 * last);
+      last = w;
+      total += w;
+      if (static_cast<int>(i) + 1 < k) done += w;
+      if (static_cast<int>(i) + 1 == k) done += std::clamp(within, 0.0, 1.0) * w;
+    }
+    if (!(total > 0.0)) return -1;
+    // Monotone: a level larger than its estimate moves the total, never the percent back.
+    shown_ = std::max(shown_, static_cast<int>(std::clamp(100.0 * done / total, 0.0, 100.0)));
+    return shown_;
+  }
+
+ private:
+  mutable int shown_ = 0;
+  double cap_;
+  std::vector<double> known_;
+};
+
+inline double stageStart(FitStage stage) {
+  switch (stage) {
+    case FitStage::Residual: return 0.30;
+    case FitStage::Assembly: return 0.45;
+    case FitStage::Solve: return 0.55;
+    default: return 0.0;
+  }
+}
+
+/// Where stage fraction `stage` ∈ [0, 1] of unit `unit` of `units` lies within its level (see FitWork).
+inline double unitWithin(int unit, int units, double stage) {
+  return units > 1 ? (unit + std::clamp(stage, 0.0, 1.0)) / units : stage;
+}
+
+/// Passes everything on to the fit's interrupter, with the level filled into the solver's events and the
+/// solve's progress (log residual / log tolerance) as the fit's percent (of unit `unit` of `units`).
+class LevelInterrupter final : public Interrupter {
+ public:
+  LevelInterrupter(Interrupter& to, int level, int levels, const FitWork& work, double tolerance, int unit = 0,
+                   int units = 1)
+      : to_(to), level_(level), levels_(levels), work_(work), tolerance_(tolerance), unit_(unit), units_(units) {}
+  void start(const char* name) override { to_.start(name); }
+  void end() override { to_.end(); }
+  bool wasInterrupted(int percent) override {
+    if (percent < 0) {
+      double within = 0.0;
+      if (residual_ > 0.0 && residual_ < 1.0 && tolerance_ > 0.0 && tolerance_ < 1.0) {
+        within = std::log(residual_) / std::log(tolerance_);
+      }
+      const double stage = stageStart(FitStage::Solve) + (1.0 - stageStart(FitStage::Solve)) * std::clamp(within, 0.0, 1.0);
+      percent = work_.percent(level_, unitWithin(unit_, units_, stage));
+    }
+    return to_.wasInterrupted(percent);
+  }
+  void fitEvent(const FitEvent& event) override {
+    FitEvent e = event;
+    e.level = level_;
+    e.levels = levels_;
+    if (e.stage == FitStage::Solve && e.iteration > 0) residual_ = e.residual;
+    to_.fitEvent(e);
+  }
+  void message(const std::string& line) override { to_.message(line); }
+
+ private:
+  Interrupter& to_;
+  int level_, levels_;
+  const FitWork& work_;
+  double tolerance_;
+  int unit_, units_;
+  double residual_ = 1.0;
+};
+
 
 /// @throws InvalidArgument naming the first bad field of `o`.
 void checkFitOptions(const FitOptions& o);

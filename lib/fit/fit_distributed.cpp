@@ -32,10 +32,11 @@ using Clock = std::chrono::steady_clock;
 
 constexpr int kMaxBlocks = 1 << 16;
 
-void notify(Interrupter* interrupter, FitStage stage, int k, int levels, const std::string& message) {
+/// Reports the event and polls with the fit's percent (−1: unknown), as fit() does.
+void notify(Interrupter* interrupter, FitStage stage, int k, int levels, const std::string& message, int percent = -1) {
   if (interrupter == nullptr) return;
   interrupter->fitEvent({stage, k, levels, 0, 0.0, message});
-  if (interrupter->wasInterrupted(-1)) throw Cancelled(std::string("fit cancelled during ") + fitStageName(stage));
+  if (interrupter->wasInterrupted(percent)) throw Cancelled(std::string("fit cancelled during ") + fitStageName(stage));
 }
 
 // The fit's normalisation and hierarchy box from the input's bounds, as fit() computes them.
@@ -295,6 +296,9 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
   rep.sigma1 = sigma1 / norm.scale;
   rep.levels = levels;
   rep.secondsHierarchy = secondsSince(t);
+  // The fit's percent for the progress line and its ETA: every level's work from its cell count (known at
+  // the level's start, the later ones extrapolated), each level's blocks in turn (detail::FitWork).
+  detail::FitWork work(levels, static_cast<Eigen::Index>(rep.inputPoints), deltas.size());
 
   // Sign anchors: with one block the winding number of the whole cloud (as fit()); with several, that of a
   // proxy cloud every rank holds (the gathered centroids of a fine depth), on the gathered levels only.
@@ -361,9 +365,10 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
     for (DistributedLevelReport& dl : dls) dl.level = k;
 
     t = Clock::now();
-    notify(interrupter, FitStage::Constraints, k, levels, "");
     // Gathered when the level has few points (all blocks together; cells counted per block, an upper bound).
     const std::int64_t levelPointsAll = k < levels ? blockCellCount(k) : static_cast<std::int64_t>(rep.inputPoints);
+    work.setLevel(k, static_cast<Eigen::Index>(levelPointsAll) * static_cast<Eigen::Index>(2 + deltas.size()));
+    notify(interrupter, FitStage::Constraints, k, levels, "", work.percent(k, 0.0));
     const bool gathered = static_cast<std::size_t>(levelPointsAll) <= dist.coarsePoints;
     for (DistributedLevelReport& dl : dls) dl.gathered = gathered;
 
@@ -436,7 +441,9 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       const std::string unitName = units > 1 ? "block " + std::to_string(block + 1) + " of " + std::to_string(parts) + ": " : "";
       const auto unitStart = Clock::now();
       auto tu = unitStart;
-      if (units > 1) notify(interrupter, FitStage::Constraints, k, levels, unitName + "constraints");
+      // The percent at a stage of this unit.
+      const auto at = [&](FitStage stage) { return work.percent(k, detail::unitWithin(j, units, detail::stageStart(stage))); };
+      if (units > 1) notify(interrupter, FitStage::Constraints, k, levels, unitName + "constraints", at(FitStage::Constraints));
       detail::LevelPoints level;
       std::vector<char> ownedPoint;  // per level point: this unit owns it
       if (gathered) {
@@ -542,7 +549,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
 
       // b = t − f_{k−1}(C).
       tu = Clock::now();
-      notify(interrupter, FitStage::Residual, k, levels, unitName);
+      notify(interrupter, FitStage::Residual, k, levels, unitName, at(FitStage::Residual));
       Eigen::VectorXd fPrev = Eigen::VectorXd::Constant(c.centres.rows(), -1.0);
       if (!fitted.empty() && c.centres.rows() > 0) fPrev = evaluator->evaluateNormalized(c.centres);
       const Eigen::VectorXd b = c.targets - fPrev;
@@ -552,7 +559,8 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       // Assemble and solve the unit's system (the level's whole system when gathered); exact mode: the
       // rank's rows of the level's global system, solved by distributed PCG.
       tu = Clock::now();
-      notify(interrupter, FitStage::Assembly, k, levels, unitName + std::to_string(c.centres.rows()) + " centres");
+      notify(interrupter, FitStage::Assembly, k, levels, unitName + std::to_string(c.centres.rows()) + " centres",
+             at(FitStage::Assembly));
       const double lambda = options.smoothing * k;
       Eigen::VectorXd weights = Eigen::VectorXd::Zero(b.size());
       SolveStats solve;
@@ -564,7 +572,8 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
         dl.ghosts = system.ghosts;
         lr.secondsAssembly += secondsSince(tu);
         tu = Clock::now();
-        notify(interrupter, FitStage::Solve, k, levels, std::to_string(nonZeros) + " non-zeros (this rank's rows)");
+        notify(interrupter, FitStage::Solve, k, levels, std::to_string(nonZeros) + " non-zeros (this rank's rows)",
+               at(FitStage::Solve));
         const int blockSize = options.preconditioner == PreconditionerKind::BlockJacobi ? options.blockSize : 1;
         const detail::DistributedSolve solved = detail::solveDistributedCg(
             comm, system, b, weights, detail::levelSolverOptions(options, k >= levels), options.precision, blockSize);
@@ -586,8 +595,19 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
         nonZeros = a.nonZeros();
         lr.secondsAssembly += secondsSince(tu);
         tu = Clock::now();
-        notify(interrupter, FitStage::Solve, k, levels, unitName + std::to_string(a.nonZeros()) + " non-zeros");
-        solve = detail::solveLevelSystem(device, a, b, options, k >= levels, weights);
+        notify(interrupter, FitStage::Solve, k, levels, unitName + std::to_string(a.nonZeros()) + " non-zeros",
+               at(FitStage::Solve));
+        // The solve reports its iterations with the level, polls with the fit's percent and can be stopped.
+        std::unique_ptr<detail::LevelInterrupter> monitor;
+        if (interrupter != nullptr) {
+          monitor = std::make_unique<detail::LevelInterrupter>(
+              *interrupter, k, levels, work, detail::levelSolverOptions(options, k >= levels).relativeTolerance, j, units);
+        }
+        solve = detail::solveLevelSystem(device, a, b, options, k >= levels, weights, monitor.get());
+        if (solve.reason == StopReason::Cancelled) {
+          throw Cancelled("fit cancelled during the level " + std::to_string(k) + " solve" +
+                          (units > 1 ? " of block " + std::to_string(block + 1) : std::string()));
+        }
       }
       const double solveSeconds = secondsSince(tu);
       lr.secondsSolve += solveSeconds;
@@ -686,7 +706,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
   }
 
   // E_0 at the owned input points and E_δ at the owned finest offset points, from the final field.
-  notify(interrupter, FitStage::Errors, 0, levels, "");
+  notify(interrupter, FitStage::Errors, 0, levels, "", 100);
   double e0 = 0.0;
   if (u.rows() > 0) e0 = evaluator->evaluateNormalized(u).cwiseAbs().maxCoeff() / norm.scale;
   rep.e0 = comm.allreduce(e0, ReduceOp::Max);

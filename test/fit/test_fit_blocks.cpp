@@ -4,14 +4,17 @@
 // and exact mode with blocks are refused. (N blocks against N MPI ranks: test/cli/test_cli_mpi.cpp.)
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <map>
 #include <memory>
+#include <vector>
 
 #include "duplexfit/communicator.hpp"
 #include "duplexfit/distributed.hpp"
 #include "duplexfit/error.hpp"
 #include "fit/hierarchy.hpp"
 #include "fit/partition.hpp"
+#include "recording_interrupter.hpp"
 #include "shapes.hpp"
 #include "test_device.hpp"
 
@@ -115,5 +118,63 @@ TEST_SUITE("fit") {
     DistributedOptions exact = d;
     exact.mode = DistributedMode::Exact;
     CHECK_THROWS_AS(fitDistributed(dev, *comm, four, o, exact, r4), InvalidArgument);
+  }
+
+  TEST_CASE("fit by blocks: the fit's percent grows block by block to 100, and a block's solve can be cancelled") {
+    DUPLEXFIT_OPENCL_DEVICE(dev);
+    Points normals;
+    const Points p = testing::fibonacciSphere(3000, 0.5, &normals);
+    const PointSet cloud(p, normals);
+    const std::unique_ptr<Communicator> comm = makeSerialCommunicator();
+    FitOptions o;
+    o.offsets = {0.05};
+    o.signAnchors = false;
+    o.solver.progressInterval = 1;
+    DistributedOptions d;
+    d.coarsePoints = 600;
+    DistributedReport r;
+    const DistributedPoints four = partitionPoints(*comm, cloud, 0, 3000, r, 4);
+    REQUIRE(r.ownedOnce);
+
+    testing::RecordingInterrupter recorder;
+    const FitResult fitted = fitDistributed(dev, *comm, four, o, d, r, nullptr, &recorder);
+    std::vector<int> known;
+    for (const int percent : recorder.percents) {
+      if (percent >= 0) known.push_back(percent);
+    }
+    REQUIRE(known.size() >= 8);
+    CHECK(std::is_sorted(known.begin(), known.end()));
+    CHECK(known.front() <= 5);
+    CHECK(known.back() == 100);
+    // Within a block-solved level the percent moves on from block to block.
+    bool blockSolved = false, iterationsCarryLevel = true;
+    int levelOfBlocks = 0;
+    for (std::size_t k = 0; k < r.rankReports[0].levels.size(); ++k) {
+      if (!r.rankReports[0].levels[k].gathered) {
+        blockSolved = true;
+        levelOfBlocks = static_cast<int>(k) + 1;
+      }
+    }
+    REQUIRE(blockSolved);
+    for (const FitEvent& e : recorder.events) {
+      if (e.stage == FitStage::Solve && e.iteration > 0 && e.level < 1) iterationsCarryLevel = false;
+    }
+    CHECK(iterationsCarryLevel);
+    CHECK(fitted.report.levels == static_cast<int>(fitted.report.levelReports.size()));
+
+    // Cancelled at the second CG iteration of the last block-solved level's third block.
+    testing::RecordingInterrupter canceller;
+    int blocksSeen = 0;
+    canceller.stopWhen = [&](const testing::RecordingInterrupter& i) {
+      const FitEvent& e = i.events.back();
+      if (e.level != levelOfBlocks || e.stage != FitStage::Solve) return false;
+      if (e.iteration == 0) return false;
+      if (e.iteration == 1) ++blocksSeen;
+      return blocksSeen == 3 && e.iteration >= 2;
+    };
+    DistributedReport rc;
+    const DistributedPoints again = partitionPoints(*comm, cloud, 0, 3000, rc, 4);
+    CHECK_THROWS_WITH_AS(fitDistributed(dev, *comm, again, o, d, rc, nullptr, &canceller),
+                         doctest::Contains("solve of block 3"), Cancelled);
   }
 }
