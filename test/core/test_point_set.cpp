@@ -3,8 +3,10 @@
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <random>
 #include <string>
 #include <vector>
@@ -144,6 +146,30 @@ TEST_CASE("point set: mergeDuplicates with a tolerance and on a large cloud") {
   CHECK(twice.normals() == again.normals());
   CHECK(twice.positions().row(0) == p2.row(0));
   CHECK((twice.normals().rowwise().norm().array() - 1.0).abs().maxCoeff() < 1e-12);
+  // The groups in the order of their first point, each the sum of its points' normals in input order,
+  // normalised: against a first-seen map built here.
+  std::map<std::array<double, 3>, int> seen;
+  std::vector<Eigen::RowVector3d> sums, firstPosition;
+  for (int i = 0; i < 40000; ++i) {
+    const std::array<double, 3> key{p2(i, 0), p2(i, 1), p2(i, 2)};
+    const auto it = seen.emplace(key, static_cast<int>(sums.size())).first;
+    if (it->second == static_cast<int>(sums.size())) {
+      sums.push_back(Eigen::RowVector3d::Zero());
+      firstPosition.push_back(p2.row(i));
+    }
+    sums[static_cast<std::size_t>(it->second)] += n2.row(i);
+  }
+  REQUIRE(sums.size() == twice.size());
+  std::size_t differ = 0;
+  for (std::size_t g = 0; g < sums.size(); ++g) {
+    const auto row = static_cast<Eigen::Index>(g);
+    // (the normal to rounding: Eigen may sum the norm of a matrix row in another order than a vector's)
+    if (twice.positions().row(row) != firstPosition[g] ||
+        (twice.normals().row(row) - sums[g] / sums[g].norm()).cwiseAbs().maxCoeff() > 1e-15) {
+      ++differ;
+    }
+  }
+  CHECK(differ == 0);
 }
 
 TEST_CASE("point set: checkFittable accepts surfaces and explains what is wrong otherwise") {
