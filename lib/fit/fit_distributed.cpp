@@ -237,12 +237,15 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
   const Points u = normalise(points.positions(), norm);
   const Points nu = options.normalsInward ? points.normals() : Points(-points.normals());
   // f(positions, normals) for each of this rank's blocks: a rank of B blocks computes what B ranks would.
+  // Runs f on each local block in turn, polling the interrupter before each (a block's octree or cell
+  // sums take seconds at millions of points).
   const auto forEachBlock = [&](const auto& f) {
     if (localBlocks == 1) {
       f(0, u, nu);
       return;
     }
     for (int j = 0; j < localBlocks; ++j) {
+      if (interrupter != nullptr && interrupter->wasInterrupted(-1)) throw Cancelled("fit cancelled during the blocks' hierarchy");
       const Eigen::Index b0 = blockRows[static_cast<std::size_t>(j)], n = blockRows[static_cast<std::size_t>(j) + 1] - b0;
       f(j, Points(u.middleRows(b0, n)), Points(nu.middleRows(b0, n)));
     }
