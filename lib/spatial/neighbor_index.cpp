@@ -2,8 +2,6 @@
 // hidden behind a PImpl. Queries run in parallel blocks (OpenMP) with our own result sets, so that
 // results are deterministic: sorted by (Euclidean distance, index), ties broken by index.
 #include <algorithm>
-#include <atomic>
-#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -24,8 +22,8 @@
 #pragma GCC diagnostic pop
 
 #include "duplexfit/error.hpp"
-#include "duplexfit/interrupter.hpp"
 #include "spatial/morton.hpp"
+#include "spatial/search_stop.hpp"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -50,9 +48,6 @@ constexpr std::size_t kRetainHits = std::size_t{1} << 20;
 /// Leaf size of the k-d tree: for radius queries of ~45 results, 24–64 measured ~10% faster than
 /// FLANN's default of 10, and larger leaves cost small-radius and k = 1 queries more.
 constexpr int kLeafSize = 24;
-
-/// How often the calling thread polls the interrupter during a search (after a first poll at its start).
-constexpr std::chrono::milliseconds kPollInterval{20};
 
 /// Relative slack on squared bounds handed to FLANN. FLANN prunes and filters on squared distances
 /// (‖p − q‖² < bound) while we decide on the rounded Euclidean distance; the slack makes sure no
@@ -220,9 +215,8 @@ struct NeighborIndex::Impl {
   std::unique_ptr<Tree> tree;  ///< null for an empty set
 
   /// Runs searchOne(state, query, hits) for every query in parallel blocks and returns the lists;
-  /// each thread owns a state from makeState(), and searchOne appends one query's sorted hits. The
-  /// team's thread 0 (the calling thread) polls `interrupter` before its first block and then every
-  /// kPollInterval; once it says stop, every thread skips its remaining blocks and run throws Cancelled.
+  /// each thread owns a state from makeState(), and searchOne appends one query's sorted hits;
+  /// `interrupter` can stop it (detail::SearchStop: run then throws Cancelled).
   template <typename MakeState, typename SearchOne>
   NeighborLists run(const Points& queries, MakeState makeState, SearchOne searchOne, Interrupter* interrupter) const;
 };
@@ -256,8 +250,7 @@ NeighborLists NeighborIndex::Impl::run(const Points& queries, MakeState makeStat
   std::vector<const std::vector<Hit>*> stores(static_cast<std::size_t>(maxThreads()), nullptr);
   const double* qp = queries.data();
   ErrorSlot error;
-  std::atomic<bool> stop{false};
-  auto lastPoll = std::chrono::steady_clock::now() - kPollInterval;  // the first block polls
+  detail::SearchStop stop(interrupter);
 #pragma omp parallel
   {
     const int t = threadId();
@@ -272,18 +265,9 @@ NeighborLists NeighborIndex::Impl::run(const Points& queries, MakeState makeStat
     }
 #pragma omp for schedule(dynamic, 1)
     for (std::int64_t b = 0; b < blocks; ++b) {
-      if (!state || stop.load(std::memory_order_relaxed)) continue;
+      if (!state) continue;
       try {
-        if (interrupter != nullptr && t == 0) {
-          const auto now = std::chrono::steady_clock::now();
-          if (now - lastPoll >= kPollInterval) {
-            lastPoll = now;
-            if (interrupter->wasInterrupted()) {
-              stop.store(true, std::memory_order_relaxed);
-              continue;
-            }
-          }
-        }
+        if (stop.skip(t)) continue;
         const bool firstBlock = hits.empty();
         source[static_cast<std::size_t>(b)] = BlockSource{t, hits.size()};
         const std::int64_t begin = b * kQueryBlock;
@@ -312,7 +296,7 @@ NeighborLists NeighborIndex::Impl::run(const Points& queries, MakeState makeStat
 #pragma omp single
     {
       try {
-        if (!error.failed() && !stop.load(std::memory_order_relaxed)) {
+        if (!error.failed() && !stop.stopped()) {
           for (std::size_t i = 1; i < out.offsets.size(); ++i) out.offsets[i] += out.offsets[i - 1];
           const auto total = static_cast<std::size_t>(out.offsets.back());
           out.indices.resize(total);
@@ -324,7 +308,7 @@ NeighborLists NeighborIndex::Impl::run(const Points& queries, MakeState makeStat
     }
 
     // The same answer in every thread after the barrier of single.
-    if (!error.failed() && !stop.load(std::memory_order_relaxed)) {
+    if (!error.failed() && !stop.stopped()) {
 #pragma omp for schedule(dynamic, 4)
       for (std::int64_t b = 0; b < blocks; ++b) {
         const BlockSource& src = source[static_cast<std::size_t>(b)];
@@ -349,7 +333,7 @@ NeighborLists NeighborIndex::Impl::run(const Points& queries, MakeState makeStat
     if (hits.capacity() > kRetainHits) std::vector<Hit>().swap(hits);
   }
   error.rethrow();
-  if (stop.load()) throw Cancelled("cancelled during a neighbour search");
+  stop.throwIfStopped();
   return out;
 }
 

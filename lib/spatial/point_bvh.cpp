@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <cmath>
 #include <exception>
 #include <limits>
@@ -13,8 +12,8 @@
 #include <utility>
 
 #include "duplexfit/error.hpp"
-#include "duplexfit/interrupter.hpp"
 #include "spatial/morton.hpp"
+#include "spatial/search_stop.hpp"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -28,8 +27,6 @@ namespace {
 constexpr std::int32_t kLeaf = 8;
 /// Queries a parallel work item.
 constexpr std::int64_t kBlock = 512;
-/// As NeighborIndex: the interrupter is polled about this often by the calling thread.
-constexpr std::chrono::milliseconds kPollInterval{20};
 /// Relative slack on the squared best distance below which a box is searched: a point whose squared
 /// distance rounds differently can still tie the best distance after the square root.
 constexpr double kSquaredSlack = 1e-9;
@@ -114,10 +111,9 @@ void PointBvh::nearestOther(const Points& queries, const std::vector<Eigen::Inde
   if (q == 0 || nodes_.empty()) return;
   const std::vector<std::uint32_t> order = processingOrder(queries, 4 * kBlock);
   const std::int64_t blocks = (q + kBlock - 1) / kBlock;
-  std::atomic<bool> stop{false};
+  SearchStop stop(interrupter);
   std::atomic<bool> failed{false};
   std::exception_ptr error;
-  auto lastPoll = std::chrono::steady_clock::now() - kPollInterval;  // the first block polls
 
   // The squared distance to a node's box, summed over x, y, z as the point distance is (so that it is
   // never above the squared distance of a point inside: rounding is monotone).
@@ -142,18 +138,9 @@ void PointBvh::nearestOther(const Points& queries, const std::vector<Eigen::Inde
     stack.reserve(128);
 #pragma omp for schedule(dynamic, 1)
     for (std::int64_t b = 0; b < blocks; ++b) {
-      if (stop.load(std::memory_order_relaxed) || failed.load(std::memory_order_relaxed)) continue;
+      if (failed.load(std::memory_order_relaxed)) continue;
       try {
-        if (interrupter != nullptr && thread == 0) {
-          const auto now = std::chrono::steady_clock::now();
-          if (now - lastPoll >= kPollInterval) {
-            lastPoll = now;
-            if (interrupter->wasInterrupted()) {
-              stop.store(true, std::memory_order_relaxed);
-              continue;
-            }
-          }
-        }
+        if (stop.skip(thread)) continue;
         const std::int64_t end = std::min<std::int64_t>(q, (b + 1) * kBlock);
         for (std::int64_t s = b * kBlock; s < end; ++s) {
           const auto i = order.empty() ? static_cast<Eigen::Index>(s) : static_cast<Eigen::Index>(order[static_cast<std::size_t>(s)]);
@@ -207,7 +194,7 @@ void PointBvh::nearestOther(const Points& queries, const std::vector<Eigen::Inde
     }
   }
   if (error) std::rethrow_exception(error);
-  if (stop.load()) throw Cancelled("cancelled during a neighbour search");
+  stop.throwIfStopped();
 }
 
 }  // namespace duplexfit::detail

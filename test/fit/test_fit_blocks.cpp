@@ -33,21 +33,36 @@ double maxDifference(const ImplicitField& a, const ImplicitField& b, const Point
   return worst;
 }
 
+/// The blocks tests' cloud (3,000 points on a sphere of radius 0.5) and options: one offset, no sign
+/// anchors (the decomposition's own error: anchors with blocks come from a proxy cloud), levels with more
+/// than 600 points solved by blocks.
+PointSet sphere3000() {
+  Points normals;
+  const Points p = testing::fibonacciSphere(3000, 0.5, &normals);
+  return PointSet(p, normals);
+}
+FitOptions blocksFitOptions() {
+  FitOptions o;
+  o.offsets = {0.05};
+  o.signAnchors = false;
+  return o;
+}
+DistributedOptions blocksOptions() {
+  DistributedOptions d;
+  d.coarsePoints = 600;
+  return d;
+}
+
 }  // namespace
 
 TEST_SUITE("fit") {
   TEST_CASE("fit by blocks in one process: every point owned once, the whole fit within the halo's error, bad counts refused") {
     DUPLEXFIT_OPENCL_DEVICE(dev);
-    Points normals;
-    const Points p = testing::fibonacciSphere(3000, 0.5, &normals);
-    const PointSet cloud(p, normals);
+    const PointSet cloud = sphere3000();
     const std::unique_ptr<Communicator> comm = makeSerialCommunicator();
-    FitOptions o;
-    o.offsets = {0.05};
-    o.signAnchors = false;  // the decomposition's own error (anchors with blocks come from a proxy cloud)
+    FitOptions o = blocksFitOptions();
     o.precision = Precision::Double;
-    DistributedOptions d;
-    d.coarsePoints = 600;
+    DistributedOptions d = blocksOptions();
 
     DistributedReport r1;
     const DistributedPoints one = partitionPoints(*comm, cloud, 0, 3000, r1, 1);
@@ -122,16 +137,11 @@ TEST_SUITE("fit") {
 
   TEST_CASE("fit by blocks: the fit's percent grows block by block to 100, and a block's solve can be cancelled") {
     DUPLEXFIT_OPENCL_DEVICE(dev);
-    Points normals;
-    const Points p = testing::fibonacciSphere(3000, 0.5, &normals);
-    const PointSet cloud(p, normals);
+    const PointSet cloud = sphere3000();
     const std::unique_ptr<Communicator> comm = makeSerialCommunicator();
-    FitOptions o;
-    o.offsets = {0.05};
-    o.signAnchors = false;
+    FitOptions o = blocksFitOptions();
     o.solver.progressInterval = 1;
-    DistributedOptions d;
-    d.coarsePoints = 600;
+    const DistributedOptions d = blocksOptions();
     DistributedReport r;
     const DistributedPoints four = partitionPoints(*comm, cloud, 0, 3000, r, 4);
     REQUIRE(r.ownedOnce);
