@@ -19,27 +19,7 @@
 #include "duplexfit/timer.hpp"
 #include "spatial/point_bvh.hpp"
 
-namespace {
-
 using duplexfit::Points;
-
-void fromTree(const duplexfit::NeighborIndex& tree, const Points& q, const std::vector<Eigen::Index>& src,
-              std::vector<double>& d, std::vector<Eigen::Index>& o) {
-  const duplexfit::NeighborLists nn = tree.knnSearch(q, 2);
-  d.assign(src.size(), std::numeric_limits<double>::infinity());
-  o.assign(src.size(), -1);
-  for (std::size_t k = 0; k < src.size(); ++k) {
-    for (auto e = nn.offsets[k]; e < nn.offsets[k + 1]; ++e) {
-      if (nn.indices[static_cast<std::size_t>(e)] != src[k]) {
-        d[k] = nn.distances[static_cast<std::size_t>(e)];
-        o[k] = nn.indices[static_cast<std::size_t>(e)];
-        break;
-      }
-    }
-  }
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"duplexfit-neighbors-bench: nearest other point from the k-d tree and from the BVH"};
@@ -101,7 +81,7 @@ int main(int argc, char** argv) {
       double bestTree = std::numeric_limits<double>::infinity(), bestBvh = bestTree;
       for (int r = 0; r < repeat; ++r) {
         duplexfit::Timer t;
-        fromTree(tree, q, src, dt, ot);
+        duplexfit::detail::nearestOtherInTree(tree, q, src, dt, ot);
         bestTree = std::min(bestTree, t.seconds());
         t.restart();
         bvh.nearestOther(q, src, db, ob);

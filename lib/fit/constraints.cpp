@@ -49,18 +49,7 @@ class NearestOther {
       bvh_->nearestOther(qs, src, dist, other, interrupter_);
       return;
     }
-    const NeighborLists nn = tree().knnSearch(qs, 2, interrupter_);
-    dist.assign(src.size(), std::numeric_limits<double>::infinity());
-    other.assign(src.size(), -1);
-    for (std::size_t k = 0; k < src.size(); ++k) {
-      for (auto e = nn.offsets[k]; e < nn.offsets[k + 1]; ++e) {
-        if (nn.indices[static_cast<std::size_t>(e)] != src[k]) {
-          dist[k] = nn.distances[static_cast<std::size_t>(e)];
-          other[k] = nn.indices[static_cast<std::size_t>(e)];
-          break;
-        }
-      }
-    }
+    nearestOtherInTree(tree(), qs, src, dist, other, interrupter_);
   }
 
  private:

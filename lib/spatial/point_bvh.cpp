@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/neighbors.hpp"
 #include "spatial/morton.hpp"
 #include "spatial/search_stop.hpp"
 
@@ -195,6 +196,26 @@ void PointBvh::nearestOther(const Points& queries, const std::vector<Eigen::Inde
   }
   if (error) std::rethrow_exception(error);
   stop.throwIfStopped();
+}
+
+void nearestOtherInTree(const NeighborIndex& tree, const Points& queries, const std::vector<Eigen::Index>& exclude,
+                        std::vector<double>& distance, std::vector<Eigen::Index>& nearest, Interrupter* interrupter) {
+  if (static_cast<Eigen::Index>(exclude.size()) != queries.rows()) {
+    throw InvalidArgument("nearestOtherInTree: " + std::to_string(exclude.size()) + " exclusions for " +
+                          std::to_string(queries.rows()) + " queries");
+  }
+  const NeighborLists nn = tree.knnSearch(queries, 2, interrupter);
+  distance.assign(exclude.size(), std::numeric_limits<double>::infinity());
+  nearest.assign(exclude.size(), -1);
+  for (std::size_t k = 0; k < exclude.size(); ++k) {
+    for (auto e = nn.offsets[k]; e < nn.offsets[k + 1]; ++e) {
+      if (nn.indices[static_cast<std::size_t>(e)] != exclude[k]) {
+        distance[k] = nn.distances[static_cast<std::size_t>(e)];
+        nearest[k] = nn.indices[static_cast<std::size_t>(e)];
+        break;
+      }
+    }
+  }
 }
 
 }  // namespace duplexfit::detail

@@ -20,31 +20,13 @@ using duplexfit::Index;
 using duplexfit::Points;
 using duplexfit::detail::PointBvh;
 
-/// The reference: the nearest of the k-d tree's two nearest that is not the excluded one.
-void reference(const Points& points, const Points& queries, const std::vector<Eigen::Index>& exclude,
-               std::vector<double>& distance, std::vector<Eigen::Index>& nearest) {
-  const duplexfit::NeighborIndex index(points);
-  const duplexfit::NeighborLists nn = index.knnSearch(queries, 2);
-  distance.assign(exclude.size(), std::numeric_limits<double>::infinity());
-  nearest.assign(exclude.size(), -1);
-  for (std::size_t k = 0; k < exclude.size(); ++k) {
-    for (auto e = nn.offsets[k]; e < nn.offsets[k + 1]; ++e) {
-      if (nn.indices[static_cast<std::size_t>(e)] != exclude[k]) {
-        distance[k] = nn.distances[static_cast<std::size_t>(e)];
-        nearest[k] = nn.indices[static_cast<std::size_t>(e)];
-        break;
-      }
-    }
-  }
-}
-
 void checkAgainstReference(const Points& points, const Points& queries, const std::vector<Eigen::Index>& exclude) {
   std::vector<double> d, dRef;
   std::vector<Eigen::Index> n, nRef;
   const PointBvh bvh(points);
   CHECK(bvh.size() == static_cast<std::size_t>(points.rows()));
   bvh.nearestOther(queries, exclude, d, n);
-  reference(points, queries, exclude, dRef, nRef);
+  duplexfit::detail::nearestOtherInTree(duplexfit::NeighborIndex(points), queries, exclude, dRef, nRef);
   REQUIRE(d.size() == dRef.size());
   std::size_t mismatches = 0;
   for (std::size_t i = 0; i < d.size(); ++i) {
