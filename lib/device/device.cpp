@@ -383,7 +383,7 @@ std::string DeviceTuning::describe() const {
   if (workGroup == 0) return "reference";
   std::ostringstream s;
   s << "wg=" << workGroup << " chunk=" << chunk << " lanes=" << lanes << " groups=" << groups
-    << " reductions=" << (chunkReductions ? "chunk" : "group");
+    << " reductions=" << (chunkReductions ? "chunk" : "group") << " field=" << (fieldVector ? "vector" : "scalar");
   return s.str();
 }
 

@@ -47,6 +47,8 @@ namespace {
 
 constexpr std::size_t kMaxCellsPerLevel = std::size_t{1} << 24;
 constexpr std::size_t kChunk = std::size_t{1} << 20;
+/// Reals past the last centre in the device buffer: 8 records of x, y, z, w (kernels/eval_field.cl, _v8).
+constexpr std::size_t kCentrePad = 4 * 8;
 
 void addLevel(detail::EvaluatorImpl& e, const FieldLevel& level) {
   const Points& c = level.centres;
@@ -146,7 +148,10 @@ std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u,
         auto& impl = *e.device.impl();
         const cl::Buffer qb = uploadArray(e.device, q, "field query points");
         const cl::Buffer ob = detail::createBuffer(e.device, out.size() * sizeof(T), "field evaluation results");
-        const char* name = k == 1 ? "eval_field_value" : k == 4 ? "eval_field_gradient" : "eval_field_hessian";
+        const bool v8 = impl.params().fieldVector;
+        const char* name = k == 1   ? (v8 ? "eval_field_value_v8" : "eval_field_value")
+                           : k == 4 ? (v8 ? "eval_field_gradient_v8" : "eval_field_gradient")
+                                    : (v8 ? "eval_field_hessian_v8" : "eval_field_hessian");
         cl::Kernel& kern = impl.kernel("field", e.precision, name);
         detail::setArgs(kern, name, static_cast<cl_uint>(m), qb, e.levels, e.paramsBuf.buffer, e.dimsBuf.buffer,
                         e.cellStartBuf.buffer, e.centresBuf.buffer);
@@ -165,13 +170,15 @@ std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u,
 
 /// Brings the device copy of `host` up to date: only the elements appended since the last call are
 /// written, into the same buffer while it has room; otherwise a new buffer of `reserve` × the size
-/// (clipped to the device's largest allocation) receives everything.
+/// (clipped to the device's largest allocation) receives everything. `pad` more elements are always
+/// allocated past the host's (never written: the 8-wide field kernels read, and mask, up to 7 centres
+/// past the last one).
 template <typename T>
 void syncArray(const Device& device, detail::EvaluatorImpl::DeviceArray& a, const std::vector<T>& host, double reserve,
-               const std::string& what) {
+               const std::string& what, std::size_t pad = 0) {
   auto& queue = device.impl()->queue();
-  if (host.size() > a.capacity || a.capacity == 0) {
-    const std::size_t need = std::max<std::size_t>(host.size(), 1);
+  if (host.size() + pad > a.capacity || a.capacity == 0) {
+    const std::size_t need = std::max<std::size_t>(host.size() + pad, 1);
     const std::size_t limit = std::max<std::size_t>(need, static_cast<std::size_t>(device.maxAllocBytes() / sizeof(T)));
     const std::size_t capacity = std::min(limit, std::max(need, static_cast<std::size_t>(reserve * static_cast<double>(need))));
     a.buffer = detail::createBuffer(device, capacity * sizeof(T), what);
@@ -194,10 +201,10 @@ void sync(detail::EvaluatorImpl& e, double reserve) {
   if (e.device.isReference()) return;
   if (e.precision == Precision::Float) {
     syncArray(e.device, e.paramsBuf, e.paramsF, reserve, "field level parameters");
-    syncArray(e.device, e.centresBuf, e.packedF, reserve, "field centres");
+    syncArray(e.device, e.centresBuf, e.packedF, reserve, "field centres", kCentrePad);
   } else {
     syncArray(e.device, e.paramsBuf, e.params, reserve, "field level parameters");
-    syncArray(e.device, e.centresBuf, e.packed, reserve, "field centres");
+    syncArray(e.device, e.centresBuf, e.packed, reserve, "field centres", kCentrePad);
   }
   syncArray(e.device, e.dimsBuf, e.dims, reserve, "field grid sizes");
   syncArray(e.device, e.cellStartBuf, e.cellStart, reserve, "field grid cells");

@@ -3,6 +3,7 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <functional>
 #include <random>
 #include <sstream>
@@ -16,15 +17,30 @@ using namespace duplexfit;
 
 namespace {
 
-/// Runs `body` on the reference device and the OpenCL test device (when there is one), in float and,
-/// where supported, double.
+/// The OpenCL device `spec` opened with DUPLEXFIT_FIELD_KERNEL=`kernel` (vector: the 8-wide _v8 kernels,
+/// a CPU device's default; scalar: one centre a step, a GPU's).
+Device openWithFieldKernel(const std::string& spec, const char* kernel) {
+  setenv("DUPLEXFIT_FIELD_KERNEL", kernel, 1);
+  Device d = Device::open(spec);
+  unsetenv("DUPLEXFIT_FIELD_KERNEL");
+  return d;
+}
+
+/// Runs `body` on the reference device and the OpenCL test device (when there is one) with each of its
+/// two field kernels, in float and, where supported, double.
 void forEachDeviceAndPrecision(const std::function<void(const Device&, Precision)>& body) {
   std::vector<Device> devices{Device::reference()};
-  if (const Device* d = testing::openclTestDevice()) devices.push_back(*d);
+  if (const Device* d = testing::openclTestDevice()) {
+    for (const char* kernel : {"vector", "scalar"}) {
+      devices.push_back(openWithFieldKernel(d->info().spec, kernel));
+      REQUIRE(devices.back().tuning().fieldVector == (std::string(kernel) == "vector"));
+    }
+  }
   for (const Device& d : devices) {
     for (const Precision p : {Precision::Float, Precision::Double}) {
       if (p == Precision::Double && !d.supportsDouble()) continue;
       CAPTURE(d.info().spec);
+      CAPTURE(d.tuning().describe());
       CAPTURE(precisionName(p));
       body(d, p);
     }
@@ -62,6 +78,14 @@ Points randomQueries(const ImplicitField& f, int n, unsigned seed) {
   // Exactly at a centre of the finest level (ρ = 0 in the Hessian) and far away.
   q.row(0) = (f.levels()[2].centres.row(5) / f.normalization().scale) + f.normalization().centre.transpose();
   q.row(1) << 100.0, 100.0, 100.0;
+  // At every centre of the finest level, when there is room: every cell's row ends there, the last
+  // record of the device buffer included (the 8-wide kernels read up to 7 records past a row).
+  const Eigen::Index m = f.levels()[2].centres.rows();
+  if (n >= m + 10) {
+    for (Eigen::Index j = 0; j < m; ++j) {
+      q.row(2 + j) = (f.levels()[2].centres.row(j) / f.normalization().scale) + f.normalization().centre.transpose();
+    }
+  }
   return q;
 }
 
