@@ -466,6 +466,30 @@ TEST_CASE("projection undoes the moves that make two sheets cross, testing only 
   const SelfIntersections part = findSelfIntersections(crossed.mesh, all, &subset);
   CHECK(part.count == expected.size());
   CHECK(part.pairs == expected);
+  // A subset in one corner of the overlap: the tree is then built over the faces near it only, and the
+  // pairs must still be exactly those of the full list with a face in it.
+  std::vector<std::int64_t> corner;
+  std::vector<char> inCorner(static_cast<std::size_t>(crossed.mesh.faces.rows()), 0);
+  for (std::int64_t f = 0; f < crossed.mesh.faces.rows(); ++f) {
+    const Eigen::RowVector3d c = (crossed.mesh.vertices.row(crossed.mesh.faces(f, 0)) +
+                                  crossed.mesh.vertices.row(crossed.mesh.faces(f, 1)) +
+                                  crossed.mesh.vertices.row(crossed.mesh.faces(f, 2))) / 3.0;
+    if (c.x() > 0.6 && c.x() < 0.75 && c.y() > 0.2 && c.y() < 0.4) {
+      corner.push_back(f);
+      inCorner[static_cast<std::size_t>(f)] = 1;
+    }
+  }
+  REQUIRE(corner.size() > 4);
+  REQUIRE(corner.size() * 10 < static_cast<std::size_t>(crossed.mesh.faces.rows()));
+  std::vector<std::pair<std::int64_t, std::int64_t>> expectedCorner;
+  for (const auto& p : full.pairs) {
+    if (inCorner[static_cast<std::size_t>(p.first)] || inCorner[static_cast<std::size_t>(p.second)]) expectedCorner.push_back(p);
+  }
+  REQUIRE(!expectedCorner.empty());
+  const SelfIntersections local = findSelfIntersections(crossed.mesh, all, &corner);
+  CHECK(local.complete);
+  CHECK(local.pairs == expectedCorner);
+  CHECK(local.count == expectedCorner.size());
   const std::vector<std::int64_t> none;
   CHECK(findSelfIntersections(crossed.mesh, all, &none).count == 0);
   std::vector<std::int64_t> outside{crossed.mesh.faces.rows()};
