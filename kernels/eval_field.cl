@@ -51,17 +51,17 @@ __kernel void eval_field_hessian(const uint nq, __global const real* queries, co
  * small sums, as in the scalar kernel (lane sums kept over all levels carry the coarse levels' magnitude:
  * in float, 1.7x the scalar kernel's largest error on fandisk_550k). PoCL runs one work-item's loop over a row of
  * centres as scalar code (the trip count differs between work-items, so it cannot vectorise across
- * them); here the loop itself is 8 wide. Each step reads the next 8 centres (two 16-wide loads of the
+ * them); here the loop itself is 8 wide. Each step reads the next 8 centres (four 8-wide loads of the
  * x, y, z, w records); lanes past the end of the row are masked, so the device buffer of the centres is
- * allocated 8 centres longer than the field (FieldEvaluator pads it; the values there are never used). */
-#define DPX_VEC_(type, n) type##n
-#define DPX_VEC(type, n) DPX_VEC_(type, n)
-typedef DPX_VEC(REAL, 8) real8;
-typedef DPX_VEC(REAL, 16) real16;
-typedef DPX_VEC(REAL_INT, 8) mask8;
+ * allocated 8 centres longer than the field (FieldEvaluator pads it; the values there are never used).
+ * Float only (float8 fills a 256-bit AVX register; double8 would cross the AVX calling convention of
+ * PoCL's builtins, which -Werror refuses): in double, FieldEvaluator runs the scalar kernel. */
+#ifndef REAL_IS_DOUBLE
+typedef float8 real8;
+typedef int8 mask8;
 
 inline real dpx_hsum8(const real8 v) {
-  const DPX_VEC(REAL, 4) h = v.lo + v.hi;
+  const float4 h = v.lo + v.hi;
   return (h.s0 + h.s2) + (h.s1 + h.s3);
 }
 
@@ -92,16 +92,16 @@ inline void dpx_field_point_v8(const real x, const real y, const real z, const u
         const uint b = cell_start[row + (uint)x0] + c_off;
         const uint e = cell_start[row + (uint)x1 + 1] + c_off;
         for (uint j = b; j < e; j += 8) {
-          const real16 p = vload16(0, centres + 4 * (ulong)j);
-          const real16 q = vload16(0, centres + 4 * (ulong)j + 16);
+          __global const real* rec = centres + 4 * (ulong)j;
+          const real8 p0 = vload8(0, rec), p1 = vload8(1, rec), p2 = vload8(2, rec), p3 = vload8(3, rec);
           /* lanes past the row (their records may be another level's or the padding) sit outside the support */
-          const mask8 valid = lane < (mask8)((REAL_INT)(e - j));
-          const real8 ux = select((real8)sigma, x - (real8)(p.s048c, q.s048c), valid);
-          const real8 uy = select((real8)sigma, y - (real8)(p.s159d, q.s159d), valid);
-          const real8 uz = select((real8)sigma, z - (real8)(p.s26ae, q.s26ae), valid);
+          const mask8 valid = lane < (mask8)((int)(e - j));
+          const real8 ux = select((real8)sigma, x - (real8)(p0.s04, p1.s04, p2.s04, p3.s04), valid);
+          const real8 uy = select((real8)sigma, y - (real8)(p0.s15, p1.s15, p2.s15, p3.s15), valid);
+          const real8 uz = select((real8)sigma, z - (real8)(p0.s26, p1.s26, p2.s26, p3.s26), valid);
           const real8 d2 = ux * ux + uy * uy + uz * uz;
           const mask8 inside = d2 < (real8)s2;
-          const real8 w = select((real8)0, (real8)(p.s37bf, q.s37bf), inside);
+          const real8 w = select((real8)0, (real8)(p0.s37, p1.s37, p2.s37, p3.s37), inside);
           const real8 rho = sqrt(d2);
           const real8 r = rho * inv_sigma;
           const real8 t = fmax((real8)1 - r, (real8)0);
@@ -177,3 +177,4 @@ __kernel void eval_field_hessian_v8(const uint nq, __global const real* queries,
   const uint q = get_global_id(0);
   if (q < nq) eval_point_v8(q, queries, nlevels, params, dims, cell_start, centres, f0, out, 10);
 }
+#endif /* REAL_IS_DOUBLE */

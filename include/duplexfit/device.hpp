@@ -78,7 +78,8 @@ struct DeviceTuning {
   std::size_t lanes = 0;         ///< work-items per row in the row-per-group SpMV
   std::size_t groups = 0;        ///< work-groups of the group reductions
   bool chunkReductions = false;  ///< CPU style: chunk reductions and the fused row-per-item SpMV
-  /// Field evaluation by the 8-wide kernels (a CPU device's SIMD units; DUPLEXFIT_FIELD_KERNEL=vector|scalar).
+  /// Float field evaluation by the 8-wide kernels (a CPU device's SIMD units; DUPLEXFIT_FIELD_KERNEL=vector|scalar;
+  /// double always runs the scalar kernel).
   bool fieldVector = false;
   /// "wg=… chunk=… lanes=… groups=… reductions=chunk|group field=vector|scalar", or "reference" for the reference
   /// device.

@@ -131,9 +131,9 @@ std::string DeviceImpl::programSource(const std::string& program, Precision prec
   if (it == table.end()) throw DeviceError("unknown OpenCL program '" + program + "'");
   std::ostringstream src;
   if (precision == Precision::Double) {
-    src << "#pragma OPENCL EXTENSION cl_khr_fp64 : enable\n#define REAL double\n#define REAL_INT long\n";
+    src << "#pragma OPENCL EXTENSION cl_khr_fp64 : enable\n#define REAL double\n#define REAL_IS_DOUBLE 1\n";
   } else {
-    src << "#define REAL float\n#define REAL_INT int\n";
+    src << "#define REAL float\n";
   }
   src << "#define WG " << params_.workGroup << "\n#define CHUNK " << params_.chunk << "\n#define LANES "
       << params_.lanes << "\n";

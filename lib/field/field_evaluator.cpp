@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <type_traits>
 
 #include "device/cl_check.hpp"
 #include "device/device_impl.hpp"
@@ -148,7 +149,7 @@ std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u,
         auto& impl = *e.device.impl();
         const cl::Buffer qb = uploadArray(e.device, q, "field query points");
         const cl::Buffer ob = detail::createBuffer(e.device, out.size() * sizeof(T), "field evaluation results");
-        const bool v8 = impl.params().fieldVector;
+        const bool v8 = impl.params().fieldVector && std::is_same_v<T, float>;  // float only (eval_field.cl)
         const char* name = k == 1   ? (v8 ? "eval_field_value_v8" : "eval_field_value")
                            : k == 4 ? (v8 ? "eval_field_gradient_v8" : "eval_field_gradient")
                                     : (v8 ? "eval_field_hessian_v8" : "eval_field_hessian");

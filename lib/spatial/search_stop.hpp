@@ -1,6 +1,9 @@
 // The stop flag of a parallel batched search (private to the library; NeighborIndex and PointBvh): the
-// calling thread (the team's thread 0) polls the Interrupter before its first block and then every
-// kPollInterval; once it says stop, every thread skips its remaining blocks and the search throws Cancelled.
+// calling thread polls the Interrupter when the search starts (before the parallel region), then, as the
+// team's thread 0, before a block once kPollInterval has passed; once it says stop, every thread skips its
+// remaining blocks and the search throws Cancelled. The first poll is not left to thread 0's first block:
+// on a loaded machine the other threads can take every block of a short search before thread 0 takes one,
+// and a stop asked before the search was then missed (a flaky "cancelled at the first poll" test).
 #pragma once
 
 #include <atomic>
@@ -15,7 +18,10 @@ class SearchStop {
  public:
   static constexpr std::chrono::milliseconds kPollInterval{20};
 
-  explicit SearchStop(Interrupter* interrupter) : interrupter_(interrupter) {}
+  /// Polls the interrupter once, on the calling thread (an exception from it propagates).
+  explicit SearchStop(Interrupter* interrupter) : interrupter_(interrupter) {
+    if (interrupter_ != nullptr && interrupter_->wasInterrupted()) stop_.store(true, std::memory_order_relaxed);
+  }
 
   /// Called by thread `thread` of the team before each block: true when the block is to be skipped (the
   /// search was stopped). Only thread 0 polls; an exception from the interrupter propagates.
@@ -38,7 +44,7 @@ class SearchStop {
  private:
   Interrupter* interrupter_;
   std::atomic<bool> stop_{false};
-  std::chrono::steady_clock::time_point lastPoll_ = std::chrono::steady_clock::now() - kPollInterval;  // polls at once
+  std::chrono::steady_clock::time_point lastPoll_ = std::chrono::steady_clock::now();  // just polled
 };
 
 }  // namespace duplexfit::detail
