@@ -9,39 +9,24 @@
  *   out[K*nq]                   K = 1 (f), 4 (f, df/dx, df/dy, df/dz) or 10 (f, gradient, Hessian
  *                               xx, xy, xz, yy, yz, zz), query-major */
 
-inline void eval_point(const uint q, __global const real* queries, const uint nlevels,
-                       __global const real* params, __global const uint* dims,
-                       __global const uint* cell_start, __global const real* centres,
-                       const real f0, __global real* out, const int k) {
-  real acc[10];
-  dpx_field_point(queries[3 * q], queries[3 * q + 1], queries[3 * q + 2], nlevels, params, dims,
-                  cell_start, centres, f0, k, acc);
-  for (int c = 0; c < k; ++c) out[(ulong)k * q + (ulong)c] = acc[c];
-}
+/* One entry point: query q of work-item q, K results of the body `point` (dpx_field_point or, below,
+ * dpx_field_point_v8). */
+#define DPX_EVAL_KERNEL(name, point, K)                                                                  \
+  __kernel void name(const uint nq, __global const real* queries, const uint nlevels,                    \
+                     __global const real* params, __global const uint* dims,                             \
+                     __global const uint* cell_start, __global const real* centres, const real f0,       \
+                     __global real* out) {                                                               \
+    const uint q = get_global_id(0);                                                                     \
+    if (q >= nq) return;                                                                                 \
+    real acc[10];                                                                                        \
+    point(queries[3 * q], queries[3 * q + 1], queries[3 * q + 2], nlevels, params, dims, cell_start,     \
+          centres, f0, K, acc);                                                                          \
+    for (int c = 0; c < K; ++c) out[(ulong)K * q + (ulong)c] = acc[c];                                   \
+  }
 
-__kernel void eval_field_value(const uint nq, __global const real* queries, const uint nlevels,
-                               __global const real* params, __global const uint* dims,
-                               __global const uint* cell_start, __global const real* centres,
-                               const real f0, __global real* out) {
-  const uint q = get_global_id(0);
-  if (q < nq) eval_point(q, queries, nlevels, params, dims, cell_start, centres, f0, out, 1);
-}
-
-__kernel void eval_field_gradient(const uint nq, __global const real* queries, const uint nlevels,
-                                  __global const real* params, __global const uint* dims,
-                                  __global const uint* cell_start, __global const real* centres,
-                                  const real f0, __global real* out) {
-  const uint q = get_global_id(0);
-  if (q < nq) eval_point(q, queries, nlevels, params, dims, cell_start, centres, f0, out, 4);
-}
-
-__kernel void eval_field_hessian(const uint nq, __global const real* queries, const uint nlevels,
-                                 __global const real* params, __global const uint* dims,
-                                 __global const uint* cell_start, __global const real* centres,
-                                 const real f0, __global real* out) {
-  const uint q = get_global_id(0);
-  if (q < nq) eval_point(q, queries, nlevels, params, dims, cell_start, centres, f0, out, 10);
-}
+DPX_EVAL_KERNEL(eval_field_value, dpx_field_point, 1)
+DPX_EVAL_KERNEL(eval_field_gradient, dpx_field_point, 4)
+DPX_EVAL_KERNEL(eval_field_hessian, dpx_field_point, 10)
 
 /* ---- The CPU devices' variant: eight centres a step in SIMD registers ----
  * The same sum as dpx_field_point, term for term (the C++ reference twin and the brute-force oracle are
@@ -144,37 +129,7 @@ inline void dpx_field_point_v8(const real x, const real y, const real z, const u
   for (int c = 0; c < k; ++c) acc[c] = sum[c];
 }
 
-inline void eval_point_v8(const uint q, __global const real* queries, const uint nlevels,
-                          __global const real* params, __global const uint* dims,
-                          __global const uint* cell_start, __global const real* centres,
-                          const real f0, __global real* out, const int k) {
-  real acc[10];
-  dpx_field_point_v8(queries[3 * q], queries[3 * q + 1], queries[3 * q + 2], nlevels, params, dims, cell_start,
-                     centres, f0, k, acc);
-  for (int c = 0; c < k; ++c) out[(ulong)k * q + (ulong)c] = acc[c];
-}
-
-__kernel void eval_field_value_v8(const uint nq, __global const real* queries, const uint nlevels,
-                                  __global const real* params, __global const uint* dims,
-                                  __global const uint* cell_start, __global const real* centres,
-                                  const real f0, __global real* out) {
-  const uint q = get_global_id(0);
-  if (q < nq) eval_point_v8(q, queries, nlevels, params, dims, cell_start, centres, f0, out, 1);
-}
-
-__kernel void eval_field_gradient_v8(const uint nq, __global const real* queries, const uint nlevels,
-                                     __global const real* params, __global const uint* dims,
-                                     __global const uint* cell_start, __global const real* centres,
-                                     const real f0, __global real* out) {
-  const uint q = get_global_id(0);
-  if (q < nq) eval_point_v8(q, queries, nlevels, params, dims, cell_start, centres, f0, out, 4);
-}
-
-__kernel void eval_field_hessian_v8(const uint nq, __global const real* queries, const uint nlevels,
-                                    __global const real* params, __global const uint* dims,
-                                    __global const uint* cell_start, __global const real* centres,
-                                    const real f0, __global real* out) {
-  const uint q = get_global_id(0);
-  if (q < nq) eval_point_v8(q, queries, nlevels, params, dims, cell_start, centres, f0, out, 10);
-}
+DPX_EVAL_KERNEL(eval_field_value_v8, dpx_field_point_v8, 1)
+DPX_EVAL_KERNEL(eval_field_gradient_v8, dpx_field_point_v8, 4)
+DPX_EVAL_KERNEL(eval_field_hessian_v8, dpx_field_point_v8, 10)
 #endif /* REAL_IS_DOUBLE */
