@@ -213,6 +213,7 @@ def main():
                 "ours": {"wall_min": wall_min, "wall_all": o["wall"], "report_total_all": o["report_total"],
                          "report_seconds": r["seconds"], "stages": s, "cg_iterations": its, "E0": r["E0"],
                          "Edelta": r["Edelta"], "peak_rss_mib": r["peak_rss_mib"],
+                         "device_tuning": r.get("device_tuning"),
                          "faces": [m["topology"]["faces"] for m in r.get("meshes", [])]},
                 "peer": ({"min": peer_min, "all": [x["seconds"]["total"] for x in peer_runs],
                           "process_all": [x["process_seconds"] for x in peer_runs],

@@ -139,6 +139,7 @@ const char* offSurfaceSideName(OffSurfaceSide side) noexcept;
 
 struct FitReport {
   std::string device;
+  std::string deviceTuning;  ///< Device::tuning().describe(): launch shape and field kernel (report.json "device_tuning")
   std::string precision;
   std::size_t inputPoints = 0, duplicatesMerged = 0, zeroNormals = 0;
   std::vector<double> offsets;         ///< δ in input units

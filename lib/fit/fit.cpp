@@ -182,6 +182,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
 
   FitReport rep;
   rep.device = device.description();
+  rep.deviceTuning = device.tuning().describe();
   rep.precision = precisionName(options.precision);
   rep.inputPoints = points.size();
   rep.zeroNormals = points.zeroNormals();

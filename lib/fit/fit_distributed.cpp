@@ -226,6 +226,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
 
   FitReport rep;
   rep.device = device.description();
+  rep.deviceTuning = device.tuning().describe();
   rep.precision = precisionName(options.precision);
   rep.inputPoints = static_cast<std::size_t>(comm.allreduce(static_cast<std::int64_t>(points.size()), ReduceOp::Sum));
   rep.zeroNormals = static_cast<std::size_t>(comm.allreduce(static_cast<std::int64_t>(points.zeroNormals()), ReduceOp::Sum));

@@ -30,6 +30,7 @@ Json topologyJson(const MeshTopology& t) {
 void addFitReport(Json& w, const FitReport& rep) {
   w["zero_normals"] = rep.zeroNormals;
   w["device"] = rep.device;
+  w["device_tuning"] = rep.deviceTuning;
   w["precision"] = rep.precision;
   w["offsets"] = rep.offsets;
   w["off_surface_side"] = offSurfaceSideName(rep.offSurfaceSide);

@@ -168,6 +168,7 @@ py::dict fitReportDict(const FitReport& r) {
   }
   py::dict d;
   d["device"] = r.device;
+  d["device_tuning"] = r.deviceTuning;
   d["precision"] = r.precision;
   d["input_points"] = r.inputPoints;
   d["duplicates_merged"] = r.duplicatesMerged;

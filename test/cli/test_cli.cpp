@@ -80,6 +80,9 @@ TEST_SUITE("cli") {
     CHECK(levels.is_array());
     CHECK_FALSE(levels.empty());
     CHECK(jsonAt(report, "/E0").is_number());
+    // The device's launch shape and field kernel, as Device::tuning() describes them.
+    const std::string tuning = jsonAt(report, "/device_tuning").get<std::string>();
+    CHECK((tuning == "reference" || tuning.find(" field=") != std::string::npos));
     // The self-check ran (input points tested against the zero level) and found nothing.
     CHECK(jsonAt(report, "/self_check").is_object());
     CHECK(jsonAt(report, "/self_check/ok") == true);
