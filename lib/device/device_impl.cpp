@@ -37,8 +37,9 @@ LaunchParams chooseParams(const DeviceInfo& info) {
     p.lanes = 4;
     p.groups = std::max<std::size_t>(4, 4 * info.computeUnits);
     p.chunkReductions = true;
-    // The field sum's inner loop over a row of centres runs 8 centres a step in SIMD registers: 2.1x
-    // (value) and 2.4x (gradient) faster than one centre a work-item on PoCL (docs/benchmarks.md).
+    // The field sum's inner loop over a row of centres runs 8 centres a step in SIMD registers (float):
+    // 1.6-1.9x (value) and 1.7x (value and gradient) faster than one centre a step on PoCL
+    // (docs/benchmarks.md).
     p.fieldVector = true;
   } else {
     p.workGroup = 256;

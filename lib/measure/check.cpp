@@ -396,19 +396,23 @@ std::vector<std::int64_t> nearAsked(const std::vector<Tri>& tris, const std::vec
   std::vector<char> keep(tested.size(), 0);
   const auto n = static_cast<long long>(tested.size());
   measure_detail::ParallelErrors errors;
-#pragma omp parallel for schedule(dynamic, 4096) default(none) shared(tris, tested, near, keep, n, grow, errors)
-  for (long long k = 0; k < n; ++k) {
-    errors.run([&] {
-      const Tri& t = tris[static_cast<std::size_t>(tested[static_cast<std::size_t>(k)])];
-      Eigen::Vector3d lo, hi;
-      for (int c = 0; c < 3; ++c) {
-        lo[c] = std::min({t.p[c], t.p[3 + c], t.p[6 + c]}) - grow;
-        hi[c] = std::max({t.p[c], t.p[3 + c], t.p[6 + c]}) + grow;
-      }
-      std::vector<std::int64_t> hit;
-      near.overlapping(lo, hi, hit, 1);
-      keep[static_cast<std::size_t>(k)] = hit.empty() ? 0 : 1;
-    });
+#pragma omp parallel default(none) shared(tris, tested, near, keep, n, grow, errors)
+  {
+    std::vector<std::int64_t> hit;  // one per thread: at most one face a query
+#pragma omp for schedule(dynamic, 4096)
+    for (long long k = 0; k < n; ++k) {
+      errors.run([&] {
+        const Tri& t = tris[static_cast<std::size_t>(tested[static_cast<std::size_t>(k)])];
+        Eigen::Vector3d lo, hi;
+        for (int c = 0; c < 3; ++c) {
+          lo[c] = std::min({t.p[c], t.p[3 + c], t.p[6 + c]}) - grow;
+          hi[c] = std::max({t.p[c], t.p[3 + c], t.p[6 + c]}) + grow;
+        }
+        hit.clear();
+        near.overlapping(lo, hi, hit, 1);
+        keep[static_cast<std::size_t>(k)] = hit.empty() ? 0 : 1;
+      });
+    }
   }
   errors.rethrow();
   std::vector<std::int64_t> out;
