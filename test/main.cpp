@@ -14,6 +14,7 @@
 
 #include "duplexfit/error.hpp"
 #include "skip.hpp"
+#include "temp_dir.hpp"
 #include "test_device.hpp"
 
 namespace {
@@ -85,6 +86,7 @@ int main(int argc, char** argv) {
   doctest::Context context(static_cast<int>(args.size()), args.data());
   const int result = context.run();
   if (context.shouldExit() || !g_runStarted) return result;
+  duplexfit::testing::finishScratchDirs(result == 0);
   const duplexfit::testing::SkipTally& tally = duplexfit::testing::skipTally();
   std::cout << duplexfit::testing::skipSummary();
   if (result != 0) return result;

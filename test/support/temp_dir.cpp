@@ -5,7 +5,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdlib>
 #include <fstream>
+#include <iostream>
+#include <mutex>
+#include <set>
 
 namespace fs = std::filesystem;
 
@@ -30,11 +34,41 @@ std::vector<std::string> TempDir::entries() const {
   return names;
 }
 
+namespace {
+
+std::mutex g_scratchMutex;
+std::set<fs::path>& scratchGroups() {
+  static std::set<fs::path> groups;
+  return groups;
+}
+
+}  // namespace
+
 fs::path scratchDir(const std::string& group, const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / (group + "-" + std::to_string(::getpid())) / name;
+  const fs::path groupDir = fs::temp_directory_path() / (group + "-" + std::to_string(::getpid()));
+  {
+    const std::lock_guard<std::mutex> lock(g_scratchMutex);
+    scratchGroups().insert(groupDir);
+  }
+  const fs::path dir = groupDir / name;
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
+}
+
+void finishScratchDirs(bool passed) {
+  const std::lock_guard<std::mutex> lock(g_scratchMutex);
+  const char* keep = std::getenv("DUPLEXFIT_KEEP_SCRATCH");
+  const bool keepAll = !passed || (keep != nullptr && std::string(keep) == "1");
+  for (const fs::path& dir : scratchGroups()) {
+    if (keepAll) {
+      std::cerr << "[duplexfit tests] scratch files kept in " << dir.string() << "\n";
+    } else {
+      std::error_code ec;
+      fs::remove_all(dir, ec);
+    }
+  }
+  scratchGroups().clear();
 }
 
 std::string readFile(const fs::path& path) {
