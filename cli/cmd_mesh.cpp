@@ -14,7 +14,7 @@ int cmdMesh(int argc, char** argv) {
   CLI::App app("extract one level set of a saved field", "mesh");
   DeviceOptions device;
   bool quiet = false, shell = false, json = false;
-  double iso = 0.0, minComponent = 0.0;
+  double iso = 0.0, minComponent = -1.0;  // -1: not given
   std::string input, out = "mesh.ply";
   std::vector<std::string> holes;
   SurfaceOptions surface;
@@ -28,11 +28,19 @@ int cmdMesh(int argc, char** argv) {
   addInteger(app, "resolution", surface.resolution, "marching grid cells along the longest side");
   addMeshFinishOptions(app, surface.finish);
   addMaxMemory(app, surface.polygonize.limits);
-  addFraction(app, "min-component", minComponent, "drop components below F of the mesh's area (default 0)");
+  addFraction(app, "min-component", minComponent,
+              "drop components below F of the mesh's area (default: 0 at iso 0; 0.001 at any other level, as fit "
+              "drops the slivers of an offset where a part is about 2|iso| thick)");
   app.add_flag("--shell", shell, "the shell between the levels 0 and --iso D > 0 as one closed solid");
   addDrainHoles(app, holes);
   if (parse(app, argc, argv)) return 0;
   surface.precision = device.precision;
+  // Not given: what fit does with its own meshes (PipelineOptions::defaultSelfCheck), so that `mesh --iso D`
+  // of a fit's field gives the fit's offset mesh; --shell applies the offset fraction itself.
+  const bool minComponentGiven = minComponent >= 0.0;
+  if (!minComponentGiven) minComponent = 0.0;
+  const double meshMinComponent =
+      minComponentGiven || iso == 0.0 ? minComponent : PipelineOptions::defaultSelfCheck().minOffsetAreaFraction;
   ShellOptions shellOptions;
   for (const std::string& h : holes) parseDrainHoleSpec(h, shellOptions);
   shell = shell || shellOptions.drained();  // holes imply --shell
@@ -56,7 +64,7 @@ int cmdMesh(int argc, char** argv) {
               << s.zeroMinusOffsetVolume() << "), " << s.drainHoles.size() << " drain hole(s)\n";
     return 0;
   }
-  const MeshPipelineResult r = runMeshPipeline(dev, field, iso, surface, minComponent, &progress);
+  const MeshPipelineResult r = runMeshPipeline(dev, field, iso, surface, meshMinComponent, &progress);
   OutputFolders folders = OutputFolders::forFile(out);
   writeMesh(out, r.mesh);
   folders.keep();

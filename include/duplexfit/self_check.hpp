@@ -46,6 +46,7 @@ struct DroppedComponents {
   std::size_t components = 0, faces = 0, vertices = 0;
   double area = 0.0;          ///< total area removed
   double areaFraction = 0.0;  ///< area / the mesh's area before dropping
+  double minAreaFraction = 0.0;  ///< the threshold applied (0: nothing was dropped on purpose)
 };
 
 /// The mesh without its connected components (faceComponents) whose area is below minAreaFraction × the

@@ -157,6 +157,12 @@ void addFinishReport(Json& m, const MeshFinishReport& f) {
   m["level_set_deviation"] = std::move(deviation);
 }
 
+Json droppedJson(const DroppedComponents& d) {
+  return Json{{"components", d.components}, {"faces", d.faces},
+              {"area", d.area}, {"area_fraction", d.areaFraction},
+              {"min_area_fraction", d.minAreaFraction}};
+}
+
 Json selfCheckJson(const SelfCheckReport& r, const std::vector<std::string>& meshNames) {
   Json surfaces = Json::array();
   for (const SurfaceSelfCheck& s : r.surfaces) {
@@ -167,9 +173,7 @@ Json selfCheckJson(const SelfCheckReport& r, const std::vector<std::string>& mes
                             {"faces", s.faces},
                             {"area", s.area},
                             {"issues", s.issues},
-                            {"dropped",
-                             {{"components", s.dropped.components}, {"faces", s.dropped.faces},
-                              {"area", s.dropped.area}, {"area_fraction", s.dropped.areaFraction}}}});
+                            {"dropped", droppedJson(s.dropped)}});
   }
   Json issues = Json::array();
   for (const ComponentIssue& i : r.issues) {
@@ -231,10 +235,6 @@ Json shellJson(const PipelineResult& result, const std::vector<std::string>& mes
   j["dropped_cavities"] = r.droppedCavities;
   j["seconds"] = r.seconds;
   return j;
-}
-
-Json droppedJson(const DroppedComponents& d) {
-  return Json{{"components", d.components}, {"faces", d.faces}, {"area", d.area}, {"area_fraction", d.areaFraction}};
 }
 
 Json gridJson(const SurfaceResult& e) {

@@ -170,7 +170,10 @@ namespace {
 
 Mesh withoutSmallComponents(const Mesh& mesh, double minAreaFraction, DroppedComponents* dropped) {
   checkFraction(minAreaFraction);
-  if (dropped != nullptr) *dropped = {};
+  if (dropped != nullptr) {
+    *dropped = {};
+    dropped->minAreaFraction = minAreaFraction;
+  }
   if (minAreaFraction == 0.0 || mesh.faces.rows() == 0) return mesh;
   const Components c = components(mesh);
   std::size_t largest = 0;
@@ -179,6 +182,7 @@ Mesh withoutSmallComponents(const Mesh& mesh, double minAreaFraction, DroppedCom
   }
   std::vector<char> keep(c.stats.size(), 1);
   DroppedComponents d;
+  d.minAreaFraction = minAreaFraction;
   for (std::size_t l = 0; l < c.stats.size(); ++l) {
     if (l == largest || !(c.stats[l].area < minAreaFraction * c.area)) continue;
     keep[l] = 0;

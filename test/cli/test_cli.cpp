@@ -98,13 +98,21 @@ TEST_SUITE("cli") {
       CHECK(testing::jsonNumber(report, std::string(m) + "/level_set_deviation/max_relative") < 1e-3);
     }
 
-    const CliRun m = cli("mesh " + (out / "field.dpxf").string() + " --iso 0.05 -o " + (dir / "half.obj").string() + " --quiet");
+    const CliRun m = cli("mesh " + (out / "field.dpxf").string() + " --iso 0.05 -o " + (dir / "half.obj").string() +
+                         " --quiet --json");
     CHECK(m.status == 0);
     CHECK(analyzeTopology(readMesh((dir / "half.obj").string())).components == 1);
+    // An offset level drops what fit drops from its offset meshes (0.001 of the area) unless told otherwise;
+    // the zero level keeps everything, as in fit.
+    const Json half = Json::parse(m.out);
+    CHECK(jsonAt(half, "/dropped/min_area_fraction").get<double>() == doctest::Approx(0.001));
+    CHECK(jsonAt(report, "/self_check/surfaces/1/dropped/min_area_fraction").get<double>() == doctest::Approx(0.001));
+    CHECK(jsonAt(report, "/self_check/surfaces/0/dropped/min_area_fraction").get<double>() == 0.0);
     const CliRun mc = cli("mesh " + (out / "field.dpxf").string() + " --min-component 0.01 -o " + (dir / "min.obj").string() +
-                          " --quiet");
+                          " --quiet --json");
     CHECK(mc.status == 0);
     CHECK(analyzeTopology(readMesh((dir / "min.obj").string())).components == 1);
+    CHECK(jsonAt(Json::parse(mc.out), "/dropped/min_area_fraction").get<double>() == doctest::Approx(0.01));
     // A triangle budget: meshoptimizer, or a clear error in a build without it.
     const CliRun small = cli("mesh " + (out / "field.dpxf").string() + " --max-triangles 500 -o " +
                              (dir / "small.stl").string() + " --quiet");
