@@ -29,25 +29,25 @@ using Tri = std::array<int, 3>;
 
 double cosDegrees(double degrees) { return std::cos(degrees * M_PI / 180.0); }
 
-/// The largest interior angle (degrees) and its corner.
-double maxAngle(const Vec& a, const Vec& b, const Vec& c, int& corner) {
+/// Whether the triangle has an interior angle above the one whose cosine is cosCap (an angle in (90, 180)
+/// degrees), and its corner. Only the corner opposite the longest edge can hold an angle above 90 degrees, so
+/// one cosine decides it (no arc tangent a corner: this test runs on every face of a fine mesh).
+bool isCap(const Vec& a, const Vec& b, const Vec& c, double cosCap, int& corner) {
   const Vec p[3] = {a, b, c};
-  double largest = -1.0;
+  const double opposite[3] = {(c - b).squaredNorm(), (a - c).squaredNorm(), (b - a).squaredNorm()};
   corner = 0;
-  for (int k = 0; k < 3; ++k) {
-    const Vec e1 = p[(k + 1) % 3] - p[k], e2 = p[(k + 2) % 3] - p[k];
-    const double angle = std::atan2(e1.cross(e2).norm(), e1.dot(e2)) * (180.0 / M_PI);
-    if (angle > largest) {
-      largest = angle;
-      corner = k;
-    }
+  for (int k = 1; k < 3; ++k) {
+    if (opposite[k] > opposite[corner]) corner = k;
   }
-  return largest;
+  const Vec e1 = p[(corner + 1) % 3] - p[corner], e2 = p[(corner + 2) % 3] - p[corner];
+  // A zero-length side gives NaN here: no angle, not a cap (as atan2(0, 0) = 0 would say).
+  const double cosine = e1.dot(e2) / std::sqrt(e1.squaredNorm() * e2.squaredNorm());
+  return cosine < cosCap;
 }
 
 class Cleaner {
  public:
-  Cleaner(const Mesh& mesh, const CleanOptions& options) : o_(options) {
+  Cleaner(const Mesh& mesh, const CleanOptions& options) : o_(options), cosCap_(cosDegrees(options.capAngle)) {
     const auto nv = static_cast<std::size_t>(mesh.vertices.rows());
     const auto nf = static_cast<std::size_t>(mesh.faces.rows());
     p_.resize(nv);
@@ -436,7 +436,7 @@ class Cleaner {
   bool tryFlip(int f) {
     const Tri& t = f_[static_cast<std::size_t>(f)];
     int corner = 0;
-    if (maxAngle(pos(t[0]), pos(t[1]), pos(t[2]), corner) <= o_.capAngle) return false;
+    if (!isCap(pos(t[0]), pos(t[1]), pos(t[2]), cosCap_, corner)) return false;
     const int v = t[static_cast<std::size_t>(corner)];
     const int a = t[static_cast<std::size_t>((corner + 1) % 3)], b = t[static_cast<std::size_t>((corner + 2) % 3)];
     if (locked_[static_cast<std::size_t>(a)] || locked_[static_cast<std::size_t>(b)] ||
@@ -518,6 +518,7 @@ class Cleaner {
   }
 
   CleanOptions o_;
+  double cosCap_;  ///< cos(capAngle)
   std::size_t aliveFaces_ = 0;
   std::vector<Quadric> quadrics_;
   std::vector<unsigned> version_;
