@@ -88,7 +88,11 @@ FloatResolution floatResolution(const Mesh& mesh) {
   const Eigen::RowVector3d lo = mesh.vertices.colwise().minCoeff(), hi = mesh.vertices.colwise().maxCoeff();
   r.magnitude = std::max(lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff());
   r.extent = (hi - lo).maxCoeff();
-  r.step = r.magnitude * std::ldexp(1.0, -23);
+  // The spacing of float32 values at the magnitude: m = f · 2^e with f in [0.5, 1) has 24-bit steps 2^(e−24)
+  // (1e8: 8; the earlier m · 2^−23 overstated it up to 2×).
+  int exponent = 0;
+  std::frexp(r.magnitude, &exponent);
+  r.step = r.magnitude > 0.0 ? std::ldexp(1.0, exponent - 24) : 0.0;
   return r;
 }
 

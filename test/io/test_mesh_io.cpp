@@ -412,8 +412,6 @@ TEST_CASE("mesh io: an OBJ polygon of 349k corners fans into linear memory") {
   checkIoError([&] { readMesh(path); }, path, {"line 2", "longer than 1 MiB"});
 }
 
-}  // TEST_SUITE
-
 TEST_CASE("mesh io: a part far from the origin is written in double PLY (float32 would merge its vertices)") {
   TempDir dir;
   Mesh m;
@@ -433,3 +431,5 @@ TEST_CASE("mesh io: a part far from the origin is written in double PLY (float32
   writeMesh(ply, m);
   CHECK(readBytes(ply).find("property float x") != std::string::npos);
 }
+
+}  // TEST_SUITE

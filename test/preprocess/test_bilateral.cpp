@@ -202,8 +202,6 @@ TEST_CASE("bilateral: bad input") {
   CHECK_THROWS_WITH_AS(bilateralFilter(ref, same, {}).points, doctest::Contains("coincide"), InvalidArgument);
 }
 
-}  // TEST_SUITE
-
 TEST_CASE("bilateral and normals: the interrupter is polled and cancels") {
   const PointSet noisy = testing::noisySphere(3000, 0.5, 0.002);
   BilateralOptions o;
@@ -222,3 +220,5 @@ TEST_CASE("bilateral and normals: the interrupter is polled and cancels") {
                        doctest::Contains("orientation"), Cancelled);
   CHECK(normals.percents == std::vector<int>{0, 50});
 }
+
+}  // TEST_SUITE

@@ -313,6 +313,7 @@ FieldGradientSampler sphereSampler(const Eigen::Vector3d& c, double r) {
 
 }  // namespace
 
+TEST_SUITE("surfaces") {
 TEST_CASE("projection moves a coarse sphere onto its level set and splits it to the target") {
   const Eigen::Vector3d c(0.1, -0.2, 0.3);
   const double r = 0.5, cell = 0.1, iso = 0.05;  // a coarse grid: faces far off the sphere of radius r − iso
@@ -401,6 +402,8 @@ TEST_CASE("projection moves a coarse sphere onto its level set and splits it to 
   broken.faces(3, 1) = static_cast<std::int32_t>(m.vertices.rows());
   CHECK_THROWS_WITH_AS(projectToLevelSet(sampler, broken, iso, side, o), doctest::Contains("face 3"), InvalidArgument);
 }
+
+}  // TEST_SUITE
 
 namespace {
 
