@@ -81,7 +81,7 @@ reference:
       --no-clean       keep the raw marching-tetrahedra meshes (by default short edges are collapsed and
                        caps flipped: no triangle is degenerate once written in float32)
       --deviation-samples N  measure each mesh's deviation at N evenly strided vertices and face centres
-                       (default 100000; 0: all of them)
+                       (default 100000; 0: all of them), and for its max also those near the worst samples
       --fast-projection  predict most face centres from the vertices' tangent planes instead of
                        evaluating them (about 20% less projection time; detail smaller than a triangle
                        can stay beyond the 0.05% split target)

@@ -123,7 +123,12 @@ struct LevelSetDeviation {
   std::size_t candidates = 0;      ///< vertices + faces of the mesh
   std::size_t samples = 0;         ///< the samples measured (all candidates, or an even stride of them)
   std::size_t flatSamples = 0;     ///< samples with |∇f| < 1e-6, left out
-  std::size_t refinedSamples = 0;  ///< samples whose Newton path replaced the first-order estimate
+  std::size_t refinedSamples = 0;  ///< samples (local ones too) whose Newton path replaced the first-order estimate
+  /// With a stride: the vertices and face centres measured around the samples beyond a quarter of the
+  /// limit (within 4 rings, at most maxSamples), for max and maxAt only; 0 when every candidate is measured.
+  std::size_t localSamples = 0;
+  /// max and maxAt: over the samples and the local samples; mean, rms, the percentiles and aboveLimit: over
+  /// the samples (an even stride, or every candidate).
   double max = 0.0, mean = 0.0, rms = 0.0;
   double p99 = 0.0, p999 = 0.0;  ///< 99th and 99.9th percentiles (nearest rank)
   Eigen::Vector3d maxAt = Eigen::Vector3d::Zero();
@@ -134,7 +139,8 @@ struct LevelSetDeviation {
   double seconds = 0.0;
 };
 
-/// maxSamples > 0 measures an even stride of at most that many of the vertices and face centres.
+/// maxSamples > 0 measures an even stride of at most that many of the vertices and face centres, then, for
+/// the max, every candidate near the stride's samples beyond a quarter of the limit (localSamples).
 LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const Mesh& mesh, double iso, double side,
                                     std::size_t maxSamples = 0);
 /// The same through a field's evaluator; side = the largest side of field.bounds().

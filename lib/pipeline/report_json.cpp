@@ -141,6 +141,7 @@ void addFinishReport(Json& m, const MeshFinishReport& f) {
                      {"samples", d.samples},
                      {"flat_samples", d.flatSamples},
                      {"refined_samples", d.refinedSamples},
+                     {"local_samples", d.localSamples},
                      {"max", d.max},
                      {"mean", d.mean},
                      {"rms", d.rms},

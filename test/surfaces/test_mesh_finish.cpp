@@ -314,6 +314,35 @@ FieldGradientSampler sphereSampler(const Eigen::Vector3d& c, double r) {
 }  // namespace
 
 TEST_SUITE("surfaces") {
+TEST_CASE("level-set deviation: a strided measure also finds the top of a small bump") {
+  // A sphere mesh moved exactly onto the sphere, then a bump of a few rings pushed outward (5e-3 at its
+  // top, five times the limit of a unit side). The stride lands on the bump's flanks at best; the local pass
+  // around them measures every vertex and face centre there, so the max is the full measure's.
+  const Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  const double r = 0.5;
+  Mesh m = cleanMesh(sphereMesh(c, r, 0.02)).mesh;
+  const Eigen::Vector3d top = r * Eigen::Vector3d(0.3, 0.4, 0.8).normalized();
+  for (Eigen::Index v = 0; v < m.vertices.rows(); ++v) {
+    Eigen::Vector3d p = m.vertices.row(v).transpose().normalized() * r;
+    const double d = (p - top).norm();
+    if (d < 0.06) p *= 1.0 + 0.01 * (1.0 - d / 0.06) * (1.0 - d / 0.06);
+    m.vertices.row(v) = p.transpose();
+  }
+  const FieldGradientSampler sampler = sphereSampler(c, r);
+  const LevelSetDeviation full = levelSetDeviation(sampler, m, 0.0, 1.0, 0);
+  REQUIRE(full.max > 4e-3);
+  CHECK(full.localSamples == 0);  // every candidate measured: nothing local to add
+  const std::size_t stride = full.candidates / 20;
+  const LevelSetDeviation part = levelSetDeviation(sampler, m, 0.0, 1.0, stride);
+  CHECK(part.samples + part.flatSamples == stride);
+  CHECK(part.localSamples > 0);
+  CHECK(part.localSamples <= stride);
+  CHECK(part.max == doctest::Approx(full.max).epsilon(1e-9));
+  CHECK((part.maxAt - full.maxAt).norm() < 0.01);
+  // The spread still comes from the stride alone: fewer samples beyond the limit than the full measure.
+  CHECK(part.aboveLimit < full.aboveLimit);
+}
+
 TEST_CASE("projection moves a coarse sphere onto its level set and splits it to the target") {
   const Eigen::Vector3d c(0.1, -0.2, 0.3);
   const double r = 0.5, cell = 0.1, iso = 0.05;  // a coarse grid: faces far off the sphere of radius r − iso
