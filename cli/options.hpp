@@ -191,9 +191,11 @@ inline void addMeshFinishOptions(CLI::App& app, MeshFinishOptions& o) {
   app.add_flag_callback("--no-clean", [&o] { o.clean = false; }, "keep slivers and float32-degenerate triangles");
   app.add_flag_callback("--no-project", [&o] { o.project = false; },
                         "leave the vertices where the grid put them (no projection onto the level set, no splits)");
+  app.add_flag_callback("--evaluate-centres", [&o] { o.predictCentres = false; },
+                        "evaluate every face centre in the projection's first round instead of predicting most of "
+                        "them from the vertices' tangent planes (slower; sees detail smaller than a triangle)");
   app.add_flag_callback("--fast-projection", [&o] { o.predictCentres = true; },
-                        "predict most face centres from the vertices' tangent planes instead of evaluating them "
-                        "(less projection time; detail smaller than a triangle can stay beyond the target)");
+                        "predict most face centres from the vertices' tangent planes (the default; kept for scripts)");
   app.add_option_function<std::string>(
          "--deviation-samples",
          [&o](const std::string& v) {

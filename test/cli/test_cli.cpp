@@ -135,7 +135,7 @@ TEST_SUITE("cli") {
       CHECK(jsonAt(level, "/offset_medial").is_array());
     }
     const CliRun plain = cli("fit " + input.string() + " --offset 0.1 --no-anchors --no-medial -o " + (dir / "plain").string() +
-                             " --quiet --resolution 32");
+                             " --quiet --resolution 32 --evaluate-centres");
     REQUIRE(plain.status == 0);
     const Json plainReport = testing::readJsonFile(dir / "plain" / "report.json");
     // Every per-level count of anchors and medial points is 0 (every value of the key, wherever it is).
@@ -149,6 +149,11 @@ TEST_SUITE("cli") {
     CHECK(allZero(plainReport, "outside"));
     CHECK(allZero(plainReport, "off_surface_medial"));
     CHECK_FALSE(allZero(report, "outside"));  // the default fit placed anchors
+    // The projection predicts most face centres by default; --evaluate-centres evaluates every one.
+    CHECK(testing::jsonNumber(report, "/meshes/0/projection/centres_predicted") > 0);
+    CHECK(jsonAt(plainReport, "/meshes/0/projection/centres_predicted") == 0);
+    CHECK(testing::jsonNumber(plainReport, "/meshes/0/projection/centres_evaluated") >=
+          testing::jsonNumber(plainReport, "/meshes/0/topology/faces") * 0.9);
 
     const CliRun rel = cli("fit " + input.string() + " --offset-rel 0.1,-0.05 -o " + (dir / "rel").string() + " --quiet --format stl");
     CHECK(rel.status == 0);
