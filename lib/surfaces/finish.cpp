@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/measure.hpp"
 #include "duplexfit/mesh_finish.hpp"
 #include "newton.hpp"
 
@@ -97,6 +98,7 @@ LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const M
   d.side = side;
   d.limit = 1e-3 * side;
   const Eigen::Index nv = mesh.vertices.rows(), nf = mesh.faces.rows();
+  if (nf > 0) validateMesh(mesh, "level-set deviation");  // indices in range, finite vertices
   const Eigen::Index all = nv + nf;
   d.candidates = static_cast<std::size_t>(all);
   // Candidate s: vertex s (s < nv) or the centre of face s − nv.

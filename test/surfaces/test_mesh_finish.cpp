@@ -341,6 +341,10 @@ TEST_CASE("level-set deviation: a strided measure also finds the top of a small 
   CHECK((part.maxAt - full.maxAt).norm() < 0.01);
   // The spread still comes from the stride alone: fewer samples beyond the limit than the full measure.
   CHECK(part.aboveLimit < full.aboveLimit);
+  // A face index out of range is a clear error, not a read past the vertices.
+  Mesh bad = m;
+  bad.faces(3, 1) = static_cast<std::int32_t>(m.vertices.rows());
+  CHECK_THROWS_WITH_AS(levelSetDeviation(sampler, bad, 0.0, 1.0, stride), doctest::Contains("face 3"), InvalidArgument);
 }
 
 TEST_CASE("projection moves a coarse sphere onto its level set and splits it to the target") {
