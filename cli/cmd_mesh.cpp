@@ -35,12 +35,11 @@ int cmdMesh(int argc, char** argv) {
   addDrainHoles(app, holes);
   if (parse(app, argc, argv)) return 0;
   surface.precision = device.precision;
-  // Not given: what fit does with its own meshes (PipelineOptions::defaultSelfCheck), so that `mesh --iso D`
-  // of a fit's field gives the fit's offset mesh; --shell applies the offset fraction itself.
+  // Not given: what fit does with its own meshes (defaultMinComponent); --shell applies the offset fraction
+  // to its inner surface itself.
   const bool minComponentGiven = minComponent >= 0.0;
   if (!minComponentGiven) minComponent = 0.0;
-  const double meshMinComponent =
-      minComponentGiven || iso == 0.0 ? minComponent : PipelineOptions::defaultSelfCheck().minOffsetAreaFraction;
+  const double meshMinComponent = minComponentGiven ? minComponent : defaultMinComponent(iso);
   ShellOptions shellOptions;
   for (const std::string& h : holes) parseDrainHoleSpec(h, shellOptions);
   shell = shell || shellOptions.drained();  // holes imply --shell

@@ -194,6 +194,11 @@ struct MeshPipelineResult {
   MeshFinishReport finish;
   SurfaceResult extraction;  ///< grid and statistics (its meshes are moved out: empty)
 };
+/// The area fraction below which a re-extracted level drops components when the caller gives none, as the
+/// fit treats its own meshes: 0 at iso 0 (everything kept), the fit's offset fraction (0.001,
+/// PipelineOptions::defaultSelfCheck) at any other level, so that `mesh --iso D` gives the fit's offset mesh.
+double defaultMinComponent(double iso);
+
 /// @throws InvalidArgument (minComponent not in [0, 1), bad options, a simplification request without
 /// meshoptimizer in the build: before any work), DeviceError, Cancelled.
 MeshPipelineResult runMeshPipeline(const Device& device, const ImplicitField& field, double iso,

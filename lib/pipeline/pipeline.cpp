@@ -594,6 +594,10 @@ void writePipelineOutputs(const PipelineResult& result, const std::string& outDi
   writePipelineOutputs(result, folder, meshFormat);
 }
 
+double defaultMinComponent(double iso) {
+  return iso == 0.0 ? 0.0 : PipelineOptions::defaultSelfCheck().minOffsetAreaFraction;
+}
+
 MeshPipelineResult runMeshPipeline(const Device& device, const ImplicitField& field, double iso,
                                    const SurfaceOptions& options, double minComponent, Interrupter* interrupter) {
   const Progress progress(interrupter);

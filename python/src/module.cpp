@@ -346,8 +346,7 @@ py::tuple fieldMesh(PyField& self, double iso, std::optional<double> cell, std::
   surface.finish.simplify.maxTriangles = maxTriangles;
   surface.finish.simplify.maxError = maxError;
   // As the fit pipeline cleans its meshes: the zero level keeps everything, an offset level drops slivers.
-  const double fraction =
-      minComponent ? *minComponent : (iso == 0.0 ? 0.0 : PipelineOptions::defaultSelfCheck().minOffsetAreaFraction);
+  const double fraction = minComponent ? *minComponent : defaultMinComponent(iso);
   MeshPipelineResult r = withProgress(progress, "mesh", [&](Interrupter* i) {
     return runMeshPipeline(device, self.field, iso, surface, fraction, i);
   });
