@@ -52,9 +52,14 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
   std::vector<std::uint8_t> ring(total, 255);
   const int rings = o.maxDistance > 0.0 ? std::min(250, static_cast<int>(std::ceil(o.maxDistance / o.spacing)) + 1) : -1;
   std::vector<std::size_t> frontier;
+  bool clamped = false;  // a point outside the grid went to a boundary cell: the ring bounds below do not hold
   if (rings >= 0) {
     for (Eigen::Index r = 0; r < inputPoints.rows(); ++r) {
       const Eigen::Vector3d p = inputPoints.row(r).transpose();
+      for (int a = 0; a < 3; ++a) {
+        const double t = (p[a] - lo[a]) / o.spacing;
+        clamped = clamped || !(t >= 0.0 && t < n[a]);
+      }
       const std::size_t c = linear(cellOf(p, 0), cellOf(p, 1), cellOf(p, 2));
       if (ring[c] != 0) {
         ring[c] = 0;
@@ -84,31 +89,47 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
       frontier.swap(next);
     }
   }
+  // A cell at Chebyshev distance r (in cells) from the nearest occupied cell has its centre at least
+  // (r − 1/2)·spacing from every input point (along one axis) and at most √3·(r + 1/2)·spacing from one.
+  // Rings that cannot reach the distance band (the occupied cells themselves at the σ_k/2 spacing, the
+  // last ring) are counted as candidates for maxCandidates but never queried; the band test decides the same
+  // for them, so the anchors are the same.
+  const auto mayBeInBand = [&](int r) {
+    if (rings < 0 || clamped) return true;
+    const double nearest = std::max(0.0, r - 0.5) * o.spacing, farthest = std::sqrt(3.0) * (r + 0.5) * o.spacing;
+    if (farthest < o.minDistance * (1.0 - 1e-9)) return false;
+    return !(o.maxDistance > 0.0 && nearest > o.maxDistance * (1.0 + 1e-9));
+  };
   std::vector<Eigen::Vector3d> cand;
+  std::size_t nearCells = 0;
   for (int k = 0; k < n[2]; ++k) {
     for (int j = 0; j < n[1]; ++j) {
       for (int i = 0; i < n[0]; ++i) {
-        if (rings >= 0 && ring[linear(i, j, k)] == 255) continue;
+        const int r = rings >= 0 ? ring[linear(i, j, k)] : 0;
+        if (rings >= 0 && r == 255) continue;
+        ++nearCells;
+        if (!mayBeInBand(r)) continue;
         cand.push_back(lo + o.spacing * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5));
       }
     }
   }
-  if (cand.size() > o.maxCandidates) {
+  if (nearCells > o.maxCandidates) {
     out.tooMany = true;
     return out;
   }
   Points q(static_cast<Eigen::Index>(cand.size()), 3);
   for (std::size_t r = 0; r < cand.size(); ++r) q.row(static_cast<Eigen::Index>(r)) = cand[r].transpose();
 
-  // Distance band.
-  const int kAgree = std::max(1, std::min<int>(o.agreeNeighbors, static_cast<int>(inputPoints.rows())));
-  const NeighborLists near = inputIndex.knnSearch(q, kAgree);
+  // Distance band: the nearest input point of every candidate; the band's candidates then get their
+  // kNear nearest (the search is exact and sorted by distance and index, so the first agreeNeighbors of
+  // them are the votes' neighbours and all of them the disk-soup distance's).
+  const NeighborLists nearest = inputIndex.knnSearch(q, 1);
   std::vector<Eigen::Index> band;
   std::vector<double> bandDistance;
   for (Eigen::Index r = 0; r < q.rows(); ++r) {
     const auto ur = static_cast<std::size_t>(r);
-    if (near.count(ur) == 0) continue;
-    const double d = near.distances[static_cast<std::size_t>(near.offsets[ur])];
+    if (nearest.count(ur) == 0) continue;
+    const double d = nearest.distances[static_cast<std::size_t>(nearest.offsets[ur])];
     if (d < o.minDistance || (o.maxDistance > 0.0 && d > o.maxDistance)) continue;
     band.push_back(r);
     bandDistance.push_back(d);
@@ -126,8 +147,12 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
       if (nc.count(r) > 0 && nc.distances[static_cast<std::size_t>(nc.offsets[r])] < o.centreClearance) clear[r] = 0;
     }
   }
+  const int kAgree = std::max(1, std::min<int>(o.agreeNeighbors, static_cast<int>(inputPoints.rows())));
+  const int kNear = std::max(kAgree, std::min<int>(kDiskNeighbours, static_cast<int>(inputPoints.rows())));
+  const NeighborLists near = inputIndex.knnSearch(bq, kNear);
   const Eigen::VectorXd w = winding.evaluate(bq);
-  const Eigen::VectorXd disk = diskSoupDistance(bq, inputPoints, inwardNormals, areas, inputIndex);
+  const Eigen::VectorXd disk =
+      diskSoupDistance(bq, inputPoints, inwardNormals, areas, near, std::min<int>(kNear, kDiskNeighbours));
 
   std::vector<Eigen::Vector3d> pos;
   std::vector<double> target;
@@ -143,9 +168,9 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
     }
     const bool inside = wr >= 0.5;
     // The nearest samples' tangent planes: (c − p)·ν > 0 puts c on the inner side of p.
-    const std::size_t qr = static_cast<std::size_t>(band[r]);
     int agree = 0, votes = 0;
-    for (auto e = near.offsets[qr]; e < near.offsets[qr + 1]; ++e) {
+    const auto votesEnd = std::min(near.offsets[r + 1], near.offsets[r] + kAgree);
+    for (auto e = near.offsets[r]; e < votesEnd; ++e) {
       const Index j = near.indices[static_cast<std::size_t>(e)];
       if (inwardNormals.row(j).squaredNorm() == 0.0) continue;
       const double s = (bq.row(static_cast<Eigen::Index>(r)) - inputPoints.row(j)).dot(inwardNormals.row(j));
