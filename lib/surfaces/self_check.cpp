@@ -2,6 +2,7 @@
 // (exact closest points on the triangle BVH), offset components against the zero-level mesh
 // (offsetComponents, the rule of `measure --offset-of`), and the removal of small components.
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -98,21 +99,32 @@ std::vector<char> componentsWithPoints(const Mesh& mesh, const TriangleBvh& tree
   const auto n = static_cast<long long>(points.rows());
   // Points in Morton order, so that each query's hint (the previous closest face) is a tight start.
   const std::vector<std::uint32_t> order = detail::processingOrder(points, 2);  // empty: the input order
+  std::size_t open = count;  // components not credited yet
   while (true) {
     std::vector<char> credit(count, 0);
     const TriangleBvh& t = *current;
     const std::vector<Index>& l = *currentLabels;
-#pragma omp parallel default(none) shared(t, l, points, order, credit, n, tol)
+    // Once every component still open has been credited in this round, the rest of the points can only
+    // credit them again: they are skipped (one component, the usual case, needs a handful of queries).
+    std::atomic<std::size_t> creditedNow{0};
+    std::atomic<bool> allCredited{false};
+#pragma omp parallel default(none) shared(t, l, points, order, credit, n, tol, creditedNow, allCredited, open)
     {
       std::int64_t hint = -1;
 #pragma omp for schedule(dynamic, 256)
       for (long long i = 0; i < n; ++i) {
+        if (allCredited.load(std::memory_order_relaxed)) continue;
         const auto row = static_cast<Eigen::Index>(order.empty() ? i : order[static_cast<std::size_t>(i)]);
         const ClosestPoint cp = t.closest(points.row(row).transpose(), hint);
         if (cp.face < 0 || !(cp.distance <= tol)) continue;
         const auto c = static_cast<std::size_t>(l[static_cast<std::size_t>(cp.face)]);
-#pragma omp atomic write
-        credit[c] = 1;
+        char before = 0;
+#pragma omp atomic capture
+        {
+          before = credit[c];
+          credit[c] = 1;
+        }
+        if (before == 0 && creditedNow.fetch_add(1) + 1 == open) allCredited.store(true, std::memory_order_relaxed);
       }
     }
     bool credited = false, remaining = false;
@@ -121,6 +133,7 @@ std::vector<char> componentsWithPoints(const Mesh& mesh, const TriangleBvh& tree
       carried[c] = static_cast<char>(carried[c] != 0 || credit[c] != 0);
       remaining = remaining || carried[c] == 0;
     }
+    open -= creditedNow.load();
     if (!credited || !remaining) break;
     Mesh rest;
     rest.vertices = mesh.vertices;
