@@ -45,6 +45,23 @@ bool isCap(const Vec& a, const Vec& b, const Vec& c, double cosCap, int& corner)
   return cosine < cosCap;
 }
 
+/// tan(1°): a triangle with an angle below 1° is a sliver whose own normal is noise.
+const double kTanSliver = std::tan(M_PI / 180.0);
+
+/// Whether the triangle's smallest angle (at the corner opposite its shortest side, always below 90°) has a
+/// tangent below tanLimit: |e1 × e2| < tanLimit · (e1 · e2) there, without an arc tangent (this runs for every
+/// face around every collapse of a simplification).
+bool hasAngleBelow(const Vec& a, const Vec& b, const Vec& c, double tanLimit) {
+  const Vec p[3] = {a, b, c};
+  const double opposite[3] = {(c - b).squaredNorm(), (a - c).squaredNorm(), (b - a).squaredNorm()};
+  int corner = 0;
+  for (int k = 1; k < 3; ++k) {
+    if (opposite[k] < opposite[corner]) corner = k;
+  }
+  const Vec e1 = p[(corner + 1) % 3] - p[corner], e2 = p[(corner + 2) % 3] - p[corner];
+  return e1.cross(e2).norm() < tanLimit * e1.dot(e2);
+}
+
 class Cleaner {
  public:
   Cleaner(const Mesh& mesh, const CleanOptions& options) : o_(options), cosCap_(cosDegrees(options.capAngle)) {
@@ -89,13 +106,36 @@ class Cleaner {
       const Vec u = n / len;
       for (int v : t) quadrics_[static_cast<std::size_t>(v)].addPlane(u, u.dot(pos(t[0])));
     }
-    using Entry = std::tuple<double, int, int, unsigned, unsigned>;
-    std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> heap;
+    // A bucket queue on the cost's logarithm (a quarter octave a bucket, last in first out inside one): a
+    // binary heap of 24-byte entries spent most of the simplification in its sift-downs on fine meshes (about
+    // four entries a face, far beyond the caches), and the order within a factor 2^(1/4) of cost hardly
+    // matters. An entry is stale when an end's version moved since the push: versions only grow, so their
+    // sum says so exactly.
+    struct Entry {
+      std::uint32_t a, b, stamp;
+    };
+    constexpr int kMinExp = -120, kMaxExp = 40, kPerOctave = 4;
+    std::vector<std::vector<Entry>> buckets(static_cast<std::size_t>((kMaxExp - kMinExp) * kPerOctave + 2));
+    std::size_t lowest = buckets.size();
+    const auto bucketOf = [&](double cost) -> std::size_t {
+      if (!(cost > 0.0)) return 0;
+      const double x = std::floor(kPerOctave * (std::log2(cost) - kMinExp));
+      return static_cast<std::size_t>(std::clamp(x + 1.0, 1.0, static_cast<double>(buckets.size() - 1)));
+    };
+    // Squared costs above the bound are never collapsed (costs only grow as quadrics add up, and an edge
+    // whose ends change is pushed again), so they are not queued.
+    const double maxCost = maxError > 0.0 ? maxError * maxError : HUGE_VAL;
     std::vector<Vec> positions;
+    const auto stampOf = [&](int a, int b) {
+      return static_cast<std::uint32_t>(version_[static_cast<std::size_t>(a)] + version_[static_cast<std::size_t>(b)]);
+    };
     const auto push = [&](int a, int b) {
       if (a > b) std::swap(a, b);
       const double cost = edgeCost(a, b, positions);
-      heap.emplace(cost, a, b, version_[static_cast<std::size_t>(a)], version_[static_cast<std::size_t>(b)]);
+      if (!(std::max(cost, 0.0) <= maxCost)) return;
+      const std::size_t k = bucketOf(cost);
+      buckets[k].push_back(Entry{static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b), stampOf(a, b)});
+      lowest = std::min(lowest, k);
     };
     for (std::size_t i = 0; i < f_.size(); ++i) {
       if (!alive_[i]) continue;
@@ -104,18 +144,23 @@ class Cleaner {
         if (a < b) push(a, b);
       }
     }
-    while (!heap.empty() && (target == 0 || aliveFaces_ > target)) {
-      const auto [cost, a, b, va, vb] = heap.top();
-      heap.pop();
-      if (va != version_[static_cast<std::size_t>(a)] || vb != version_[static_cast<std::size_t>(b)]) continue;
+    std::vector<int> around;
+    while (target == 0 || aliveFaces_ > target) {
+      while (lowest < buckets.size() && buckets[lowest].empty()) ++lowest;
+      if (lowest == buckets.size()) break;
+      const Entry top = buckets[lowest].back();
+      buckets[lowest].pop_back();
+      const int a = static_cast<int>(top.a), b = static_cast<int>(top.b);
+      if (top.stamp != stampOf(a, b)) continue;
       if (!vAlive(a) || !vAlive(b) || !hasEdge(a, b)) continue;
-      if (maxError > 0.0 && std::sqrt(std::max(cost, 0.0)) > maxError) break;
-      edgeCost(a, b, positions);
+      const double cost = edgeCost(a, b, positions);
+      if (maxError > 0.0 && std::sqrt(std::max(cost, 0.0)) > maxError) continue;
       if (!tryCollapse(a, b, &positions)) continue;
       quadrics_[static_cast<std::size_t>(a)] += quadrics_[static_cast<std::size_t>(b)];
       ++version_[static_cast<std::size_t>(a)];
       ++version_[static_cast<std::size_t>(b)];
-      for (int n : neighbours(a)) push(a, n);
+      neighbours(a, around);
+      for (int n : around) push(a, n);
     }
   }
 
@@ -241,6 +286,12 @@ class Cleaner {
 
   std::vector<int> neighbours(int v) const {
     std::vector<int> n;
+    neighbours(v, n);
+    return n;
+  }
+  /// The same into `n` (its storage reused).
+  void neighbours(int v, std::vector<int>& n) const {
+    n.clear();
     for (int f : vf_[static_cast<std::size_t>(v)]) {
       for (int w : f_[static_cast<std::size_t>(f)]) {
         if (w != v) n.push_back(w);
@@ -248,7 +299,6 @@ class Cleaner {
     }
     std::sort(n.begin(), n.end());
     n.erase(std::unique(n.begin(), n.end()), n.end());
-    return n;
   }
 
   /// Locks the ends of every edge without exactly two faces traversing it in opposite directions, and
@@ -335,8 +385,12 @@ class Cleaner {
     };
     const int w0 = third(shared[0]), w1 = third(shared[1]);
     // Link condition: a and b have exactly the two opposite vertices as common neighbours.
-    const std::vector<int> na = neighbours(a), nb = neighbours(b);
-    std::vector<int> common;
+    std::vector<int>& na = scratchA_;
+    std::vector<int>& nb = scratchB_;
+    std::vector<int>& common = scratchCommon_;
+    neighbours(a, na);
+    neighbours(b, nb);
+    common.clear();
     std::set_intersection(na.begin(), na.end(), nb.begin(), nb.end(), std::back_inserter(common));
     if (w0 == w1 || common.size() != 2 || !(std::find(common.begin(), common.end(), w0) != common.end() &&
                                              std::find(common.begin(), common.end(), w1) != common.end())) {
@@ -344,14 +398,16 @@ class Cleaner {
       return false;
     }
     // The surviving faces around the merged vertex, with b renamed a: no two may be the same triangle.
-    std::vector<int> ring;
+    std::vector<int>& ring = scratchRing_;
+    ring.clear();
     for (int f : vf_[static_cast<std::size_t>(a)]) {
       if (f != shared[0] && f != shared[1]) ring.push_back(f);
     }
     for (int f : vf_[static_cast<std::size_t>(b)]) {
       if (f != shared[0] && f != shared[1]) ring.push_back(f);
     }
-    std::vector<Tri> keys;
+    std::vector<Tri>& keys = scratchKeys_;
+    keys.clear();
     for (int f : ring) {
       Tri t = f_[static_cast<std::size_t>(f)];
       for (int& v : t) {
@@ -399,7 +455,7 @@ class Cleaner {
       const double la = na.norm(), lb = nb.norm();
       if (!(la > 0.0)) return false;
       // A sliver's own normal is noise: it must only face the way the surface around it does.
-      const bool sliver = !(lb > 0.0) || minAngleDegrees(before[0], before[1], before[2]) < 1.0;
+      const bool sliver = !(lb > 0.0) || hasAngleBelow(before[0], before[1], before[2], kTanSliver);
       if (sliver) {
         if (!(na.dot(ringNormal) > 0.0)) return false;
       } else if (!(na.dot(nb) >= maxCos * la * lb)) {
@@ -513,8 +569,19 @@ class Cleaner {
       const Vec best = ldlt.solve(q.b);
       if (best.allFinite() && (best - mid).norm() <= (pos(a) - pos(b)).norm()) positions.push_back(best);
     }
-    std::sort(positions.begin(), positions.end(), [&q](const Vec& x, const Vec& y) { return q(x) < q(y); });
-    return q(positions.front());
+    // Cheapest first (each candidate's cost evaluated once).
+    std::array<std::pair<double, int>, 4> order{};
+    const auto m = static_cast<int>(positions.size());
+    for (int i = 0; i < m; ++i) order[static_cast<std::size_t>(i)] = {q(positions[static_cast<std::size_t>(i)]), i};
+    for (int i = 1; i < m; ++i) {  // insertion sort of at most four
+      for (int j = i; j > 0 && order[static_cast<std::size_t>(j)] < order[static_cast<std::size_t>(j - 1)]; --j) {
+        std::swap(order[static_cast<std::size_t>(j)], order[static_cast<std::size_t>(j - 1)]);
+      }
+    }
+    std::array<Vec, 4> sorted;
+    for (int i = 0; i < m; ++i) sorted[static_cast<std::size_t>(i)] = positions[static_cast<std::size_t>(order[static_cast<std::size_t>(i)].second)];
+    for (int i = 0; i < m; ++i) positions[static_cast<std::size_t>(i)] = sorted[static_cast<std::size_t>(i)];
+    return order[0].first;
   }
 
   CleanOptions o_;
@@ -526,6 +593,8 @@ class Cleaner {
   std::vector<Tri> f_;
   std::vector<char> alive_, locked_;
   std::vector<std::vector<int>> vf_;
+  std::vector<int> scratchA_, scratchB_, scratchCommon_, scratchRing_;  ///< tryCollapse's, reused
+  std::vector<Tri> scratchKeys_;
 };
 
 }  // namespace
