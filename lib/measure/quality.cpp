@@ -23,15 +23,17 @@ bool float32Degenerate(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const
 
 double minAngleDegrees(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
   const Eigen::Vector3d p[3] = {a, b, c};
-  double smallest = 180.0;
-  for (int k = 0; k < 3; ++k) {
-    const Eigen::Vector3d e1 = p[(k + 1) % 3] - p[k], e2 = p[(k + 2) % 3] - p[k];
-    if (e1.squaredNorm() == 0.0 || e2.squaredNorm() == 0.0) return 0.0;
-    // atan2 of |e1 × e2| and e1 · e2 is accurate for angles near 0 and 180° alike.
-    const double angle = std::atan2(e1.cross(e2).norm(), e1.dot(e2)) * (180.0 / M_PI);
-    smallest = std::min(smallest, angle);
+  // The smallest angle is the one opposite the shortest side (law of sines), so one arc tangent is enough:
+  // this runs for every face of a fine mesh, several times (cleaning, projection, quality reports).
+  const double opposite[3] = {(c - b).squaredNorm(), (a - c).squaredNorm(), (b - a).squaredNorm()};
+  if (opposite[0] == 0.0 || opposite[1] == 0.0 || opposite[2] == 0.0) return 0.0;
+  int k = 0;
+  for (int j = 1; j < 3; ++j) {
+    if (opposite[j] < opposite[k]) k = j;
   }
-  return smallest;
+  const Eigen::Vector3d e1 = p[(k + 1) % 3] - p[k], e2 = p[(k + 2) % 3] - p[k];
+  // atan2 of |e1 × e2| and e1 · e2 is accurate for angles near 0 and 180° alike.
+  return std::atan2(e1.cross(e2).norm(), e1.dot(e2)) * (180.0 / M_PI);
 }
 
 TriangleQuality triangleQuality(const Mesh& mesh, double sliverAngle) {
