@@ -14,7 +14,10 @@
 #include "duplexfit/fit.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/preprocess.hpp"
+#include "duplexfit/neighbors.hpp"
 #include "duplexfit/surfaces.hpp"
+#include "duplexfit/winding.hpp"
+#include "fit/anchors.hpp"
 #include "shapes.hpp"
 #include "test_device.hpp"
 
@@ -212,6 +215,49 @@ TEST_SUITE("fit") {
           CHECK(t.watertight());
         }
       }
+    }
+  }
+
+  TEST_CASE("sign anchors: the distance band holds every grid cell a brute-force nearest distance puts in it") {
+    // levelAnchors queries only the rings of cells that can reach the band (by the ring's distance bounds);
+    // the band it finds must be exactly the brute-force one, at the σ/2 spacing (the occupied cells skipped)
+    // and at the doubled spacing (nothing skipped by the lower bound).
+    Points normals;
+    const Points points = testing::sampledTorus(3000, 0.4, 0.1, &normals);
+    const Points inward = -normals;
+    const WindingNumber winding(points, normals);
+    const NeighborIndex index(points);
+    Eigen::AlignedBox3d box;
+    for (Eigen::Index i = 0; i < points.rows(); ++i) box.extend(points.row(i).transpose());
+    box.extend(box.min() - Eigen::Vector3d::Constant(0.15));
+    box.extend(box.max() + Eigen::Vector3d::Constant(0.15));
+    const double sigma = 0.1;
+    for (const double spacing : {sigma / 2.0, sigma}) {
+      detail::AnchorOptions o;
+      o.spacing = spacing;
+      o.minDistance = 0.75 * sigma;
+      o.maxDistance = 2.0 * sigma;
+      const detail::Anchors an = detail::levelAnchors(box, points, inward, winding.areas(), index, winding, points, o);
+      // The same grid, every cell's nearest input point by brute force.
+      Eigen::Array3i n;
+      for (int a = 0; a < 3; ++a) n[a] = std::max(1, static_cast<int>(std::ceil(box.sizes()[a] / spacing)));
+      const Eigen::Vector3d lo = box.center() - 0.5 * spacing * n.cast<double>().matrix();
+      std::size_t band = 0;
+      for (int k = 0; k < n[2]; ++k) {
+        for (int j = 0; j < n[1]; ++j) {
+          for (int i = 0; i < n[0]; ++i) {
+            const Eigen::RowVector3d c = (lo + spacing * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5)).transpose();
+            const double d = std::sqrt((points.rowwise() - c).rowwise().squaredNorm().minCoeff());
+            band += d >= o.minDistance && d <= o.maxDistance ? 1 : 0;
+          }
+        }
+      }
+      CAPTURE(spacing);
+      CHECK(band > 100);
+      CHECK(an.candidates == band);
+      CHECK(an.inside + an.outside + an.ambiguous + an.disagreeing + an.crowded + an.nearOffset == band);
+      CHECK(an.inside > 0);
+      CHECK(an.outside > 0);
     }
   }
 
