@@ -18,6 +18,7 @@
 #include "duplexfit/surfaces.hpp"
 #include "duplexfit/winding.hpp"
 #include "fit/anchors.hpp"
+#include "spatial/disk_distance.hpp"
 #include "shapes.hpp"
 #include "test_device.hpp"
 
@@ -216,6 +217,24 @@ TEST_SUITE("fit") {
         }
       }
     }
+  }
+
+  TEST_CASE("disk-soup distance: from neighbour lists found once, the same as from the index; mismatched lists are an error") {
+    Points normals;
+    const Points points = testing::fibonacciSphere(2000, 0.5, &normals);
+    const WindingNumber winding(points, normals);
+    const NeighborIndex index(points);
+    Points queries(3, 3);
+    queries << 0.0, 0.0, 0.0, 0.7, 0.0, 0.0, 0.1, 0.52, -0.05;
+    const Eigen::VectorXd direct = detail::diskSoupDistance(queries, points, normals, winding.areas(), index);
+    // Twenty neighbours found, twelve used: the first twelve of the exact sorted search.
+    const NeighborLists lists = index.knnSearch(queries, 20);
+    const Eigen::VectorXd reused = detail::diskSoupDistance(queries, points, normals, winding.areas(), lists, 12);
+    CHECK((direct - reused).cwiseAbs().maxCoeff() == 0.0);
+    CHECK(direct[0] == doctest::Approx(0.5).epsilon(0.01));  // the centre: the radius
+    CHECK(direct[1] == doctest::Approx(0.2).epsilon(0.02));
+    CHECK_THROWS_AS(detail::diskSoupDistance(queries.topRows(2), points, normals, winding.areas(), lists, 12),
+                    InvalidArgument);
   }
 
   TEST_CASE("sign anchors: the distance band holds every grid cell a brute-force nearest distance puts in it") {
