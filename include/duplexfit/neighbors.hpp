@@ -39,11 +39,16 @@ class NeighborIndex {
   /// every 20 ms, so that a search over millions of queries can be stopped.
   /// @throws InvalidArgument when radius ≤ 0 or not finite; Cancelled when the interrupter says stop.
   NeighborLists radiusSearch(const Points& queries, double radius, Interrupter* interrupter = nullptr) const;
+  /// radiusSearch without sorting each query's hits by (distance, index): the same hits in the tree's
+  /// visiting order, which is deterministic, for callers that re-sort or only count (the fit's assembly
+  /// sorts each row by column, the merge of near-duplicate centres only asks whether an earlier one is near).
+  NeighborLists radiusSearchUnsorted(const Points& queries, double radius, Interrupter* interrupter = nullptr) const;
   /// The k nearest points of each query (fewer when the set is smaller); `interrupter` as for radiusSearch.
   /// @throws InvalidArgument when k ≤ 0; Cancelled.
   NeighborLists knnSearch(const Points& queries, int k, Interrupter* interrupter = nullptr) const;
 
  private:
+  NeighborLists radiusImpl(const Points& queries, double radius, Interrupter* interrupter, bool sorted) const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

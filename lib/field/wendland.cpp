@@ -122,7 +122,8 @@ CsrMatrix assemble(const Points& centres, double sigma, double lambda, const Nei
   for (Index start = 0; start < n; start += std::min(kChunkRows, n - start)) {
     const Index len = std::min(kChunkRows, n - start);
     block = centres.middleRows(start, len);
-    const NeighborLists lists = index.radiusSearch(block, sigma, interrupter);
+    // Each row is sorted by column below: the hits' distance order is not needed.
+    const NeighborLists lists = index.radiusSearchUnsorted(block, sigma, interrupter);
 
     // Entries per row (neighbours that are centres), as offsets into this chunk's part of the matrix.
     rowStart.assign(static_cast<std::size_t>(len) + 1, 0);

@@ -279,7 +279,8 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   std::vector<char> keep(static_cast<std::size_t>(total), 1);
   if (options.mergeDistance > 0.0 && total > 0) {
     out.candidateIndex = std::make_unique<NeighborIndex>(all);
-    const NeighborLists close = out.candidateIndex->radiusSearch(all, options.mergeDistance, options.interrupter);
+    // Only whether an earlier kept centre is near matters, not the hits' order.
+    const NeighborLists close = out.candidateIndex->radiusSearchUnsorted(all, options.mergeDistance, options.interrupter);
     for (Eigen::Index i = 0; i < total; ++i) {
       const auto ui = static_cast<std::size_t>(i);
       for (auto e = close.offsets[ui]; e < close.offsets[ui + 1]; ++e) {

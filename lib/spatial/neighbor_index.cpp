@@ -359,6 +359,14 @@ NeighborIndex::~NeighborIndex() = default;
 std::size_t NeighborIndex::size() const noexcept { return impl_ ? impl_->size : 0; }
 
 NeighborLists NeighborIndex::radiusSearch(const Points& queries, double radius, Interrupter* interrupter) const {
+  return radiusImpl(queries, radius, interrupter, true);
+}
+
+NeighborLists NeighborIndex::radiusSearchUnsorted(const Points& queries, double radius, Interrupter* interrupter) const {
+  return radiusImpl(queries, radius, interrupter, false);
+}
+
+NeighborLists NeighborIndex::radiusImpl(const Points& queries, double radius, Interrupter* interrupter, bool sorted) const {
   if (!(radius > 0.0) || !std::isfinite(radius)) {
     throw InvalidArgument("NeighborIndex::radiusSearch: radius must be positive and finite, got " +
                           std::to_string(radius));
@@ -373,11 +381,11 @@ NeighborLists NeighborIndex::radiusSearch(const Points& queries, double radius, 
   const flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, false);
   return impl_->run(
       queries, [radius] { return RadiusCollector(radius); },
-      [&tree, &params](RadiusCollector& collector, const double* query, std::vector<Hit>& hits) {
+      [&tree, &params, sorted](RadiusCollector& collector, const double* query, std::vector<Hit>& hits) {
         const std::size_t before = hits.size();
         collector.reset(&hits);
         tree.findNeighbors(collector, query, params);
-        sortHits(hits.data() + before, hits.data() + hits.size());
+        if (sorted) sortHits(hits.data() + before, hits.data() + hits.size());
       },
       interrupter);
 }

@@ -132,6 +132,36 @@ TEST_SUITE("spatial") {
     }
   }
 
+  TEST_CASE("neighbors: the unsorted radius search finds the same hits, in a deterministic order") {
+    const Points points = cloudWithDuplicates();
+    const Points queries = mixedQueries(points);
+    const NeighborIndex index(points);
+    for (double radius : {1e-9, 0.05, 0.4}) {
+      CAPTURE(radius);
+      const NeighborLists sorted = index.radiusSearch(queries, radius);
+      const NeighborLists unsorted = index.radiusSearchUnsorted(queries, radius);
+      REQUIRE(unsorted.offsets == sorted.offsets);
+      // Sorting each query's hits by (distance, index) gives the sorted search's lists exactly.
+      NeighborLists resorted = unsorted;
+      for (std::size_t q = 0; q + 1 < resorted.offsets.size(); ++q) {
+        std::vector<std::pair<double, Index>> hits;
+        for (auto e = resorted.offsets[q]; e < resorted.offsets[q + 1]; ++e) {
+          hits.emplace_back(resorted.distances[static_cast<std::size_t>(e)], resorted.indices[static_cast<std::size_t>(e)]);
+        }
+        std::sort(hits.begin(), hits.end());
+        for (std::size_t k = 0; k < hits.size(); ++k) {
+          resorted.distances[static_cast<std::size_t>(resorted.offsets[q]) + k] = hits[k].first;
+          resorted.indices[static_cast<std::size_t>(resorted.offsets[q]) + k] = hits[k].second;
+        }
+      }
+      CHECK(resorted.indices == sorted.indices);
+      CHECK(resorted.distances == sorted.distances);
+      const NeighborLists again = index.radiusSearchUnsorted(queries, radius);
+      CHECK(again.indices == unsorted.indices);
+    }
+    CHECK_THROWS_AS(index.radiusSearchUnsorted(queries, 0.0), InvalidArgument);
+  }
+
   TEST_CASE("neighbors: radius and knn search across many query blocks equal brute force") {
     const Points points = randomPoints(2500, 3u);
     const NeighborIndex index(points);
