@@ -46,6 +46,12 @@ class NeighborIndex {
   /// The k nearest points of each query (fewer when the set is smaller); `interrupter` as for radiusSearch.
   /// @throws InvalidArgument when k ≤ 0; Cancelled.
   NeighborLists knnSearch(const Points& queries, int k, Interrupter* interrupter = nullptr) const;
+  /// The nearest point of each query among those at distance ≤ radius (ties by index), or none: knnSearch
+  /// with k = 1 whose search never looks beyond the radius, so a query far from every point is cheap. The
+  /// bound is rounded up by a few units in the last place (as radiusSearch's), so a caller that needs an
+  /// exact ≤ test makes it on the coordinates.
+  /// @throws InvalidArgument when radius ≤ 0 or not finite; Cancelled.
+  NeighborLists nearestWithin(const Points& queries, double radius, Interrupter* interrupter = nullptr) const;
 
  private:
   NeighborLists radiusImpl(const Points& queries, double radius, Interrupter* interrupter, bool sorted) const;

@@ -505,11 +505,19 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
           }
         }
         if (!exact && !ownedRows.empty()) {
+          // Only the centres not owned are asked, and only within the halo: a search for the nearest owned
+          // centre of one far beyond the block (the data radius reaches (g + 1)σ_k + 2 max|δ|) was most of
+          // a 20M-point --blocks fit's level 11 (perf: 95% of the samples in that tree search).
+          std::vector<Eigen::Index> others;
+          for (Eigen::Index r = 0; r < c.centres.rows(); ++r) {
+            if (inSystem[static_cast<std::size_t>(r)] == 0) others.push_back(r);
+          }
           const NeighborIndex ownedIndex(rowsOf(c.centres, ownedRows));
-          const NeighborLists nearest = ownedIndex.knnSearch(c.centres, 1);
-          for (std::size_t i = 0; i < inSystem.size(); ++i) {
-            if (inSystem[i] != 0 || nearest.offsets[i + 1] == nearest.offsets[i]) continue;
-            const auto q = static_cast<Eigen::Index>(nearest.indices[static_cast<std::size_t>(nearest.offsets[i])]);
+          const NeighborLists nearest = ownedIndex.nearestWithin(rowsOf(c.centres, others), dist.halo * sigma);
+          for (std::size_t o = 0; o < others.size(); ++o) {
+            if (nearest.offsets[o + 1] == nearest.offsets[o]) continue;
+            const auto i = static_cast<std::size_t>(others[o]);
+            const auto q = static_cast<Eigen::Index>(nearest.indices[static_cast<std::size_t>(nearest.offsets[o])]);
             const double d = (c.centres.row(static_cast<Eigen::Index>(i)) - c.centres.row(ownedRows[static_cast<std::size_t>(q)])).norm();
             inSystem[i] = d <= dist.halo * sigma ? 1 : 0;
           }

@@ -104,10 +104,14 @@ class RadiusCollector final : public flann::ResultSet<double> {
 /// smaller index, so the result does not depend on the tree's visiting order.
 class KnnCollector final : public flann::ResultSet<double> {
  public:
-  explicit KnnCollector(std::size_t k) : k_(k) { heap_.reserve(k); }
+  /// `initialBound`: squared distance beyond which no point is taken (the search prunes there).
+  explicit KnnCollector(std::size_t k, double initialBound = std::numeric_limits<double>::max())
+      : k_(k), initialBound_(initialBound), bound_(initialBound) {
+    heap_.reserve(k);
+  }
   void clear() noexcept {
     heap_.clear();
-    bound_ = std::numeric_limits<double>::max();
+    bound_ = initialBound_;
   }
   bool full() const override { return heap_.size() == k_; }
   double worstDist() const override { return bound_; }
@@ -134,7 +138,8 @@ class KnnCollector final : public flann::ResultSet<double> {
  private:
   std::size_t k_;
   std::vector<Hit> heap_;
-  double bound_ = std::numeric_limits<double>::max();
+  double initialBound_;
+  double bound_;
 };
 
 int maxThreads() noexcept {
@@ -405,6 +410,29 @@ NeighborLists NeighborIndex::knnSearch(const Points& queries, int k, Interrupter
   const flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, false);
   return impl_->run(
       queries, [kept] { return KnnCollector(kept); },
+      [&tree, &params](KnnCollector& collector, const double* query, std::vector<Hit>& hits) {
+        collector.clear();
+        tree.findNeighbors(collector, query, params);
+        collector.appendSorted(hits);
+      },
+      interrupter);
+}
+
+NeighborLists NeighborIndex::nearestWithin(const Points& queries, double radius, Interrupter* interrupter) const {
+  if (!(radius > 0.0) || !std::isfinite(radius)) {
+    throw InvalidArgument("NeighborIndex::nearestWithin: radius must be positive and finite, got " + std::to_string(radius));
+  }
+  checkFinite(queries, "query");
+  if (size() == 0) {
+    NeighborLists out;
+    out.offsets.assign(static_cast<std::size_t>(queries.rows()) + 1, 0);
+    return out;
+  }
+  const Tree& tree = *impl_->tree;
+  const double bound = squaredBound(radius);
+  const flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, false);
+  return impl_->run(
+      queries, [bound] { return KnnCollector(1, bound); },
       [&tree, &params](KnnCollector& collector, const double* query, std::vector<Hit>& hits) {
         collector.clear();
         tree.findNeighbors(collector, query, params);

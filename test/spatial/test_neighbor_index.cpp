@@ -162,6 +162,32 @@ TEST_SUITE("spatial") {
     CHECK_THROWS_AS(index.radiusSearchUnsorted(queries, 0.0), InvalidArgument);
   }
 
+  TEST_CASE("neighbors: nearestWithin is the nearest point when it lies within the radius, else none") {
+    const Points points = cloudWithDuplicates();
+    const Points queries = mixedQueries(points);
+    const NeighborIndex index(points);
+    const NeighborLists nearest = index.knnSearch(queries, 1);
+    for (double radius : {1e-9, 0.01, 0.05, 0.4}) {
+      CAPTURE(radius);
+      const NeighborLists within = index.nearestWithin(queries, radius);
+      std::size_t found = 0;
+      for (std::size_t q = 0; q + 1 < nearest.offsets.size(); ++q) {
+        const auto e = static_cast<std::size_t>(nearest.offsets[q]);
+        const bool inside = nearest.distances[e] <= radius;
+        REQUIRE(within.count(q) == (inside ? 1U : 0U));
+        if (inside) {
+          ++found;
+          CHECK(within.indices[static_cast<std::size_t>(within.offsets[q])] == nearest.indices[e]);
+          CHECK(within.distances[static_cast<std::size_t>(within.offsets[q])] == nearest.distances[e]);
+        }
+      }
+      if (radius == 0.4) CHECK(found == static_cast<std::size_t>(queries.rows()));
+      if (radius == 0.05) CHECK(found > 0);
+    }
+    CHECK_THROWS_AS(index.nearestWithin(queries, -1.0), InvalidArgument);
+    CHECK(NeighborIndex(Points(0, 3)).nearestWithin(queries, 0.1).indices.empty());
+  }
+
   TEST_CASE("neighbors: radius and knn search across many query blocks equal brute force") {
     const Points points = randomPoints(2500, 3u);
     const NeighborIndex index(points);
