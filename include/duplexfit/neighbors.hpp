@@ -55,6 +55,7 @@ class NeighborIndex {
 
  private:
   NeighborLists radiusImpl(const Points& queries, double radius, Interrupter* interrupter, bool sorted) const;
+  NeighborLists knnImpl(const Points& queries, std::size_t k, double bound, Interrupter* interrupter) const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

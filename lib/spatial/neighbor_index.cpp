@@ -399,29 +399,17 @@ NeighborLists NeighborIndex::knnSearch(const Points& queries, int k, Interrupter
   if (k <= 0) {
     throw InvalidArgument("NeighborIndex::knnSearch: k must be positive, got " + std::to_string(k));
   }
-  checkFinite(queries, "query");
-  if (size() == 0) {
-    NeighborLists out;
-    out.offsets.assign(static_cast<std::size_t>(queries.rows()) + 1, 0);
-    return out;
-  }
-  const Tree& tree = *impl_->tree;
-  const std::size_t kept = std::min(static_cast<std::size_t>(k), impl_->size);
-  const flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, false);
-  return impl_->run(
-      queries, [kept] { return KnnCollector(kept); },
-      [&tree, &params](KnnCollector& collector, const double* query, std::vector<Hit>& hits) {
-        collector.clear();
-        tree.findNeighbors(collector, query, params);
-        collector.appendSorted(hits);
-      },
-      interrupter);
+  return knnImpl(queries, static_cast<std::size_t>(k), std::numeric_limits<double>::max(), interrupter);
 }
 
 NeighborLists NeighborIndex::nearestWithin(const Points& queries, double radius, Interrupter* interrupter) const {
   if (!(radius > 0.0) || !std::isfinite(radius)) {
     throw InvalidArgument("NeighborIndex::nearestWithin: radius must be positive and finite, got " + std::to_string(radius));
   }
+  return knnImpl(queries, 1, squaredBound(radius), interrupter);
+}
+
+NeighborLists NeighborIndex::knnImpl(const Points& queries, std::size_t k, double bound, Interrupter* interrupter) const {
   checkFinite(queries, "query");
   if (size() == 0) {
     NeighborLists out;
@@ -429,10 +417,10 @@ NeighborLists NeighborIndex::nearestWithin(const Points& queries, double radius,
     return out;
   }
   const Tree& tree = *impl_->tree;
-  const double bound = squaredBound(radius);
+  const std::size_t kept = std::min(k, impl_->size);
   const flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, false);
   return impl_->run(
-      queries, [bound] { return KnnCollector(1, bound); },
+      queries, [kept, bound] { return KnnCollector(kept, bound); },
       [&tree, &params](KnnCollector& collector, const double* query, std::vector<Hit>& hits) {
         collector.clear();
         tree.findNeighbors(collector, query, params);
