@@ -45,23 +45,6 @@ bool isCap(const Vec& a, const Vec& b, const Vec& c, double cosCap, int& corner)
   return cosine < cosCap;
 }
 
-/// tan(1°): a triangle with an angle below 1° is a sliver whose own normal is noise.
-const double kTanSliver = std::tan(M_PI / 180.0);
-
-/// Whether the triangle's smallest angle (at the corner opposite its shortest side, always below 90°) has a
-/// tangent below tanLimit: |e1 × e2| < tanLimit · (e1 · e2) there, without an arc tangent (this runs for every
-/// face around every collapse of a simplification).
-bool hasAngleBelow(const Vec& a, const Vec& b, const Vec& c, double tanLimit) {
-  const Vec p[3] = {a, b, c};
-  const double opposite[3] = {(c - b).squaredNorm(), (a - c).squaredNorm(), (b - a).squaredNorm()};
-  int corner = 0;
-  for (int k = 1; k < 3; ++k) {
-    if (opposite[k] < opposite[corner]) corner = k;
-  }
-  const Vec e1 = p[(corner + 1) % 3] - p[corner], e2 = p[(corner + 2) % 3] - p[corner];
-  return e1.cross(e2).norm() < tanLimit * e1.dot(e2);
-}
-
 class Cleaner {
  public:
   Cleaner(const Mesh& mesh, const CleanOptions& options) : o_(options), cosCap_(cosDegrees(options.capAngle)) {
@@ -455,7 +438,7 @@ class Cleaner {
       const double la = na.norm(), lb = nb.norm();
       if (!(la > 0.0)) return false;
       // A sliver's own normal is noise: it must only face the way the surface around it does.
-      const bool sliver = !(lb > 0.0) || hasAngleBelow(before[0], before[1], before[2], kTanSliver);
+      const bool sliver = !(lb > 0.0) || minAngleDegrees(before[0], before[1], before[2]) < 1.0;
       if (sliver) {
         if (!(na.dot(ringNormal) > 0.0)) return false;
       } else if (!(na.dot(nb) >= maxCos * la * lb)) {
