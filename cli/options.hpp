@@ -16,6 +16,7 @@
 #include "args.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/mesh_finish.hpp"
+#include "duplexfit/polygonize.hpp"
 #include "duplexfit/resources.hpp"
 #include "duplexfit/types.hpp"
 
@@ -207,6 +208,25 @@ inline void addMeshFinishOptions(CLI::App& app, MeshFinishOptions& o) {
          },
          "samples of each mesh's level-set deviation in report.json (default 100000; 0: every vertex and face centre)")
       ->type_name("N");
+}
+
+/// --refine-levels N of fit and mesh (PolygonizeOptions::refineLevels) and --refine-dilation N.
+inline void addRefineOptions(CLI::App& app, PolygonizeOptions& o) {
+  addInteger(app, "refine-levels", o.refineLevels,
+             "contour cells where the grid is too coarse for the field (a plate or gap about one node thick) on a "
+             "grid 2^N times finer, N = 0..3 (default 2; 0: off)")
+      ->check([](const std::string& v) {
+        const double d = parseFinite(v, "refine-levels");
+        if (d != std::floor(d) || d < 0 || d > 3) throw UsageError("option --refine-levels must be 0, 1, 2 or 3");
+        return std::string();
+      });
+  addInteger(app, "refine-dilation", o.refineDilation,
+             "refine the cells within N cells of such a cell too, N = 0..4 (default 1)")
+      ->check([](const std::string& v) {
+        const double d = parseFinite(v, "refine-dilation");
+        if (d != std::floor(d) || d < 0 || d > 4) throw UsageError("option --refine-dilation must be 0 to 4");
+        return std::string();
+      });
 }
 
 /// The missing folders above an output file (mesh, section, denoise, normals -o a/b/out.ply), created

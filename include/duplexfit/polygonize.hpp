@@ -3,6 +3,7 @@
 // sampled in large batches through a callback and, optionally, only near the requested level sets.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <vector>
@@ -78,6 +79,22 @@ struct PolygonizeOptions {
   int threads = 0;
   /// The memory budget: polygonize refuses a grid whose estimate (estimatePolygonize) exceeds it.
   ResourceLimits limits{};
+  /// Local refinement where the grid is too coarse for the field: a crossed cell with a node whose
+  /// neighbours on both sides along an axis lie on the other side of an iso value (a plate or gap about
+  /// one node thick, which linear interpolation cannot follow: the contour bridges it or leaves holes)
+  /// is contoured, with its neighbours within refineDilation cells, on tetrahedra refineLevels times
+  /// halved (cells 2^refineLevels times smaller), by conforming bisection of its Kuhn tetrahedra; the
+  /// closure brings in the cells needed to keep the mesh conforming, so the meshes stay watertight and
+  /// their vertices on the unrefined edges are those of the plain extraction. Smooth fields at the
+  /// grid's scale have no such layer and give the same meshes as without refinement. 0: off.
+  int refineLevels = 2;
+  bool refineThin = true;  ///< detect the cells above (false: only refineCells)
+  int refineDilation = 1;
+  /// Refined cells requested by the caller (refined like the detected ones).
+  std::vector<std::array<int, 3>> refineCells;
+  /// More seed and ring cells than this skip the refinement (PolygonizeStats::refinementSkipped):
+  /// each refined cell costs about 8^refineLevels field evaluations.
+  std::int64_t maxRefinedCells = std::int64_t{1} << 17;
 };
 
 /// What polygonize is expected to hold for a grid, before it samples anything.
@@ -111,6 +128,13 @@ struct PolygonizeStats {
   /// PolygonizeOptions::lipschitz somewhere (then consider a larger bound).
   std::int64_t continuedCells = 0;
   std::int64_t storageBytes = 0;   ///< memory held by the sampled node values (tiles + lattice)
+  std::int64_t thinCells = 0;          ///< crossed cells with a node layer one node thick
+  std::int64_t refinedSeeds = 0;       ///< cells refined fully (the thin ones and their neighbours)
+  std::int64_t refinedCells = 0;       ///< cells contoured on refined tetrahedra (seeds and closure)
+  std::int64_t refinedTetrahedra = 0;  ///< their tetrahedra
+  std::int64_t refinedEvaluations = 0; ///< field evaluations at the refined points
+  bool refinementSkipped = false;      ///< more seeds than PolygonizeOptions::maxRefinedCells
+  double refinedSeconds = 0.0;         ///< refined contouring, its evaluations included
   double samplingSeconds = 0.0;    ///< wall time of the sampling phase, sampler calls included
   double samplerSeconds = 0.0;     ///< wall time spent inside the sampler
   double extractionSeconds = 0.0;  ///< wall time of triangle extraction and welding

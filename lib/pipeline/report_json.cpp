@@ -238,10 +238,22 @@ Json shellJson(const PipelineResult& result, const std::vector<std::string>& mes
   return j;
 }
 
+/// The local refinement's counts (PolygonizeStats).
+Json refinementJson(const PolygonizeStats& s) {
+  return Json{{"thin_cells", s.thinCells},
+              {"seed_cells", s.refinedSeeds},
+              {"cells", s.refinedCells},
+              {"tetrahedra", s.refinedTetrahedra},
+              {"evaluations", s.refinedEvaluations},
+              {"skipped", s.refinementSkipped},
+              {"seconds", s.refinedSeconds}};
+}
+
 Json gridJson(const SurfaceResult& e) {
   return Json{{"cells", Json::array({e.grid.cells.x(), e.grid.cells.y(), e.grid.cells.z()})},
               {"cell", e.grid.cellSize().maxCoeff()},
               {"evaluated_fraction", e.stats.evaluatedFraction()},
+              {"refinement", refinementJson(e.stats)},
               {"sampler_seconds", e.stats.samplingSeconds},
               {"extraction_seconds", e.stats.extractionSeconds}};
 }
@@ -495,6 +507,7 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
                    {"evaluated_fraction", report.gridStats.evaluatedFraction()},
                    {"box_growths", report.boxGrowths},
                    {"continued_cells", report.gridStats.continuedCells},
+                   {"refinement", refinementJson(report.gridStats)},
                    {"touches_boundary", report.touchesBoundary},
                    {"sampler_seconds", report.gridStats.samplerSeconds},
                    {"extraction_seconds", report.gridStats.extractionSeconds}};

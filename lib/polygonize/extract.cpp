@@ -4,6 +4,7 @@
 #include "extract.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <exception>
@@ -12,7 +13,9 @@
 #include <vector>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/timer.hpp"
 #include "kuhn_cases.hpp"
+#include "refine.hpp"
 #include "sampling.hpp"
 
 #ifdef _OPENMP
@@ -105,8 +108,10 @@ bool inPlane(std::uint64_t key, int z, std::int64_t planeNodes) {
 
 class Extractor {
  public:
-  Extractor(const NodeStore& store, const GridSpec& grid, const std::vector<double>& isos)
-      : store_(store), isos_(isos), coords_(nodeCoordinates(grid)), table_(kuhnTable()) {
+  /// region: cells left to the refined contour (skipped here), or null.
+  Extractor(const NodeStore& store, const GridSpec& grid, const std::vector<double>& isos,
+            const RefinedRegion* region)
+      : store_(store), isos_(isos), region_(region), coords_(nodeCoordinates(grid)), table_(kuhnTable()) {
     double largest = 0.0;
     for (const auto& c : coords_) {
       for (double x : c) largest = std::max(largest, std::abs(x));
@@ -135,9 +140,64 @@ class Extractor {
     }
   }
 
+ /// Cells of [z0, z1) whose node values show a layer one node thick for some iso value (see
+  /// thinCells).
+  void thin(int z0, int z1, std::vector<Cell>& out) const {
+    forEachCell(z0, z1, [&](int i, int j, int k, const float* v, const std::vector<char>& active) {
+      for (std::size_t q = 0; q < isos_.size(); ++q) {
+        if (!active[q]) continue;
+        const double iso = isos_[q];
+        int mask = 0;
+        for (int c = 0; c < 8; ++c) mask |= (static_cast<double>(v[c]) >= iso) << c;
+        if (mask == 0 || mask == 255) continue;
+        for (int c = 0; c < 8; ++c) {
+          const bool side = (mask >> c) & 1;
+          for (int a = 0; a < 3; ++a) {
+            // The corner's neighbours along axis a: one in the cell, one outside it.
+            if (((mask >> (c ^ (1 << a))) & 1) == side) continue;
+            const int step = ((c >> a) & 1) != 0 ? 1 : -1;
+            int n[3] = {i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1)};
+            n[a] += step;
+            if (n[a] < 0 || n[a] > store_.cells(a)) continue;
+            const float w = store_.value(n[0], n[1], n[2]);
+            if (std::isnan(w) || std::isinf(w)) continue;
+            if ((static_cast<double>(w) >= iso) != side) {
+              out.push_back({i, j, k});
+              return;
+            }
+          }
+        }
+      }
+    });
+  }
+
  private:
   void cells(int z0, int z1, std::vector<ChunkMesh>& out, std::vector<EdgeMap>& maps,
              std::vector<Cell>& open) const {
+    const std::int64_t nx = store_.cells(0), ny = store_.cells(1);
+    forEachCell(z0, z1, [&](int i, int j, int k, const float* v, const std::vector<char>& active) {
+      if (region_ != nullptr && region_->contains(i + nx * (j + ny * std::int64_t{k}))) return;
+      bool crossed = false;
+      for (std::size_t q = 0; q < isos_.size(); ++q) {
+        if (!active[q]) continue;
+        const double iso = isos_[q];
+        int mask = 0;
+        for (int c = 0; c < 8; ++c) mask |= (static_cast<double>(v[c]) >= iso) << c;
+        if (mask != 0 && mask != 255) {
+          emitCell(i, j, k, v, mask, iso, out[q], maps[q]);
+          crossed = true;
+        }
+      }
+      // Where the surface leaves through a face into an unmarked cell, the Lipschitz bound
+      // was violated; report the cell so that the caller can continue the surface.
+      if (crossed) appendOpenNeighbours(store_, {i, j, k}, v, isos_, open);
+    });
+  }
+
+  /// Calls fn(i, j, k, v, active) for every marked cell of [z0, z1) that some iso value may cross
+  /// (v: its 8 node values, active[q]: iso value q lies within the values of the cell's row of tiles).
+  template <class Fn>
+  void forEachCell(int z0, int z1, Fn&& fn) const {
     const int t = store_.tile();
     const int nx = store_.cells(0), ny = store_.cells(1);
     const std::size_t stride = static_cast<std::size_t>(t) + 1;
@@ -175,20 +235,7 @@ class Extractor {
               sampled = sampled && !std::isnan(v[c]);
             }
             if (!sampled) continue;  // cannot happen: marked cells have all nodes sampled
-            bool crossed = false;
-            for (std::size_t q = 0; q < isos_.size(); ++q) {
-              if (!active[q]) continue;
-              const double iso = isos_[q];
-              int mask = 0;
-              for (int c = 0; c < 8; ++c) mask |= (static_cast<double>(v[c]) >= iso) << c;
-              if (mask != 0 && mask != 255) {
-                emitCell(i, j, k, v, mask, iso, out[q], maps[q]);
-                crossed = true;
-              }
-            }
-            // Where the surface leaves through a face into an unmarked cell, the Lipschitz bound
-            // was violated; report the cell so that the caller can continue the surface.
-            if (crossed) appendOpenNeighbours(store_, {i, j, k}, v, isos_, open);
+            fn(i, j, k, v, active);
           }
         }
       }
@@ -276,6 +323,7 @@ class Extractor {
 
   const NodeStore& store_;
   const std::vector<double>& isos_;
+  const RefinedRegion* region_;
   std::array<std::vector<double>, 3> coords_;
   const KuhnTable& table_;
   double minNodeDistance_ = 0.0;  ///< see kMinNodeDistanceUlps
@@ -284,8 +332,17 @@ class Extractor {
 /// Joins the chunks of one iso value, releasing them: a vertex in the plane between chunks c − 1
 /// and c (chunk c's first z) is looked up among chunk c − 1's top-plane vertices.
 Mesh merge(std::vector<ChunkMesh*>& chunks, const std::vector<int>& z0, std::int64_t planeNodes,
-           int threads) {
+           int threads, const PatchMesh& patch) {
   const std::size_t n = chunks.size();
+  // The patch's vertices on unrefined grid edges are welded to the chunks' vertices of the same key.
+  std::vector<std::pair<std::uint64_t, std::int32_t>> shared;
+  for (std::size_t v = 0; v < patch.keys.size(); ++v) {
+    if ((patch.keys[v] & PatchMesh::kFineKeyBit) == 0) shared.emplace_back(patch.keys[v], static_cast<std::int32_t>(v));
+  }
+  std::sort(shared.begin(), shared.end());
+  std::vector<std::int32_t> patchGlobal(patch.keys.size(), -1);
+  const std::uint64_t sharedLo = shared.empty() ? 1 : shared.front().first;
+  const std::uint64_t sharedHi = shared.empty() ? 0 : shared.back().first;
   std::vector<std::vector<std::int32_t>> global(n);
   std::vector<std::int64_t> firstNew(n + 1, 0), firstTri(n + 1, 0);
   std::int64_t next = 0;
@@ -305,6 +362,13 @@ Mesh merge(std::vector<ChunkMesh*>& chunks, const std::vector<int>& z0, std::int
         }
       }
       global[c][v] = g >= 0 ? g : static_cast<std::int32_t>(next++);
+      if (key >= sharedLo && key <= sharedHi) {
+        const auto it = std::lower_bound(shared.begin(), shared.end(), std::make_pair(key, std::int32_t{0}));
+        if (it != shared.end() && it->first == key) {
+          std::int32_t& p = patchGlobal[static_cast<std::size_t>(it->second)];
+          if (p < 0) p = global[c][v];
+        }
+      }
     }
     if (c > 0) std::vector<std::pair<std::uint64_t, std::int32_t>>().swap(chunks[c - 1]->top);
     firstTri[c + 1] = firstTri[c] + static_cast<std::int64_t>(m.tris.size() / 3);
@@ -312,9 +376,27 @@ Mesh merge(std::vector<ChunkMesh*>& chunks, const std::vector<int>& z0, std::int
       throw Error("polygonize: a mesh would have more than 2^31 - 1 vertices (Faces are int32)");
     }
   }
+  const std::int64_t firstPatchVertex = next;
+  for (std::int32_t& p : patchGlobal) {
+    if (p < 0) p = static_cast<std::int32_t>(next++);
+  }
+  if (next > std::numeric_limits<std::int32_t>::max()) {
+    throw Error("polygonize: a mesh would have more than 2^31 - 1 vertices (Faces are int32)");
+  }
   Mesh mesh;
   mesh.vertices.resize(next, 3);
-  mesh.faces.resize(firstTri[n], 3);
+  mesh.faces.resize(firstTri[n] + static_cast<std::int64_t>(patch.tris.size() / 3), 3);
+  for (std::size_t v = 0; v < patch.keys.size(); ++v) {
+    const std::int32_t g = patchGlobal[v];
+    if (g < firstPatchVertex) continue;
+    for (int d = 0; d < 3; ++d) mesh.vertices(g, d) = patch.xyz[3 * v + static_cast<std::size_t>(d)];
+  }
+  for (std::size_t f = 0; f < patch.tris.size() / 3; ++f) {
+    for (int d = 0; d < 3; ++d) {
+      mesh.faces(firstTri[n] + static_cast<std::int64_t>(f), d) =
+          patchGlobal[static_cast<std::size_t>(patch.tris[3 * f + static_cast<std::size_t>(d)])];
+    }
+  }
   const int chunkCount = static_cast<int>(n);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
   for (int c = 0; c < chunkCount; ++c) {
@@ -340,10 +422,11 @@ Mesh merge(std::vector<ChunkMesh*>& chunks, const std::vector<int>& z0, std::int
 
 }  // namespace
 
-Extraction extractMeshes(NodeStore& store, const GridSpec& grid,
-                         const std::vector<double>& isoValues, int threads) {
+Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vector<double>& isoValues,
+                         const PolygonizeOptions& options, const FieldSampler& sampler,
+                         PolygonizeStats& stats) {
 #ifdef _OPENMP
-  const int nt = threads > 0 ? threads : omp_get_max_threads();
+  const int nt = options.threads > 0 ? options.threads : omp_get_max_threads();
 #else
   const int nt = 1;
 #endif
@@ -356,8 +439,39 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid,
   const int chunkCount = static_cast<int>(z0.size());
   std::vector<std::vector<ChunkMesh>> chunks(z0.size());
   std::vector<std::vector<Cell>> open(z0.size());
-  const Extractor extractor(store, grid, isoValues);
   std::exception_ptr error;
+
+  // Where the grid is too coarse for the field (layers one node thick), a refined region.
+  RefinedRegion region;
+  if (options.refineLevels > 0 && (options.refineThin || !options.refineCells.empty()) &&
+      options.refineLevels <= maxRefineLevels(grid.cells)) {
+    std::vector<Cell> seeds;
+    if (options.refineThin) {
+      const Extractor detector(store, grid, isoValues, nullptr);
+      std::vector<std::vector<Cell>> thin(z0.size());
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
+      for (int c = 0; c < chunkCount; ++c) {
+        try {
+          const std::size_t cc = static_cast<std::size_t>(c);
+          detector.thin(z0[cc], std::min(z0[cc] + thickness, nz), thin[cc]);
+        } catch (...) {
+#pragma omp critical(duplexfit_extract_error)
+          if (!error) error = std::current_exception();
+        }
+      }
+      if (error) std::rethrow_exception(error);
+      for (const auto& t : thin) seeds.insert(seeds.end(), t.begin(), t.end());
+    }
+    stats.thinCells = static_cast<std::int64_t>(seeds.size());
+    seeds.insert(seeds.end(), options.refineCells.begin(), options.refineCells.end());
+    region = refineCells(grid.cells, seeds, options.refineLevels, options.refineDilation, options.maxRefinedCells);
+    stats.refinementSkipped = region.skipped;
+    stats.refinedCells = static_cast<std::int64_t>(region.cells.size());
+    stats.refinedSeeds = region.seeds;
+    stats.refinedTetrahedra = static_cast<std::int64_t>(region.tets.size());
+  }
+
+  const Extractor extractor(store, grid, isoValues, region.empty() ? nullptr : &region);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
   for (int c = 0; c < chunkCount; ++c) {
     try {
@@ -374,6 +488,13 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid,
   Extraction result;
   for (auto& o : open) result.openCells.insert(result.openCells.end(), o.begin(), o.end());
   if (!result.openCells.empty()) return result;  // the caller samples more and extracts again
+  std::vector<PatchMesh> patches(isoValues.size());
+  if (!region.empty()) {
+    const auto start = std::chrono::steady_clock::now();
+    patches = extractRefined(region, store, grid, isoValues, sampler, options.batchSize, stats, result.openCells);
+    stats.refinedSeconds += secondsSince(start);
+    if (!result.openCells.empty()) return result;
+  }
 
   const std::int64_t planeNodes =
       static_cast<std::int64_t>(store.cells(0) + 1) * (store.cells(1) + 1);
@@ -381,7 +502,8 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid,
   for (std::size_t q = 0; q < isoValues.size(); ++q) {
     std::vector<ChunkMesh*> perIso;
     for (auto& c : chunks) perIso.push_back(&c[q]);
-    result.meshes.push_back(merge(perIso, z0, planeNodes, nt));
+    result.meshes.push_back(merge(perIso, z0, planeNodes, nt, patches[q]));
+    patches[q] = PatchMesh();
   }
   return result;
 }

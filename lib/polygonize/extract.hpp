@@ -20,8 +20,11 @@ struct Extraction {
 /// Contours every marked cell for each iso value (see polygonize()). When a surface leaves the
 /// marked cells through a face that is not on the grid boundary, returns those neighbour cells
 /// (possibly repeated) instead of meshes; otherwise returns the meshes and releases the store's
-/// memory. threads: OpenMP threads, 0 = default; the result does not depend on it.
-Extraction extractMeshes(NodeStore& store, const GridSpec& grid,
-                         const std::vector<double>& isoValues, int threads);
+/// memory. Cells with a node layer one node thick (and options.refineCells) are contoured on a locally
+/// refined grid (refine.hpp), with their extra points evaluated through sampler; stats gets the
+/// refinement's counts. options.threads: OpenMP threads, 0 = default; the result does not depend on it.
+Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vector<double>& isoValues,
+                         const PolygonizeOptions& options, const FieldSampler& sampler,
+                         PolygonizeStats& stats);
 
 }  // namespace duplexfit::detail

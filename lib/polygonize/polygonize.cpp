@@ -53,6 +53,15 @@ void validateOptions(const PolygonizeOptions& o) {
     throw InvalidArgument("PolygonizeOptions::batchSize must be ≥ 1, got " +
                           std::to_string(o.batchSize));
   }
+  if (o.refineLevels < 0 || o.refineLevels > 3) {
+    throw InvalidArgument("PolygonizeOptions::refineLevels must be 0 to 3, got " + std::to_string(o.refineLevels));
+  }
+  if (o.refineDilation < 0 || o.refineDilation > 4) {
+    throw InvalidArgument("PolygonizeOptions::refineDilation must be 0 to 4, got " + std::to_string(o.refineDilation));
+  }
+  if (o.maxRefinedCells < 0) {
+    throw InvalidArgument("PolygonizeOptions::maxRefinedCells must be ≥ 0, got " + std::to_string(o.maxRefinedCells));
+  }
   if (o.threads < 0) {
     throw InvalidArgument("PolygonizeOptions::threads must be ≥ 0, got " +
                           std::to_string(o.threads));
@@ -194,7 +203,7 @@ PolygonizeResult polygonize(const FieldSampler& sampler, const GridSpec& grid,
   for (;;) {
     stats.storageBytes = store.bytes();
     const auto extractStart = std::chrono::steady_clock::now();
-    detail::Extraction e = detail::extractMeshes(store, grid, isoValues, options.threads);
+    detail::Extraction e = detail::extractMeshes(store, grid, isoValues, options, sampler, stats);
     stats.extractionSeconds += since(extractStart);
     if (e.openCells.empty()) {
       result.meshes = std::move(e.meshes);

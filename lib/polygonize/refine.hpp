@@ -1,0 +1,72 @@
+// Local refinement of the marching grid where it is too coarse for the field: cells whose node values
+// show a layer one node thick (a plate or gap thinner than about two cells, which linear
+// interpolation between nodes cannot follow) are split into a conforming finer tetrahedral mesh by
+// newest-vertex bisection of their Kuhn tetrahedra (Maubach's tagged bisection, whose closure keeps
+// the mesh conforming), and contoured there; the rest of the grid is contoured as before and the
+// pieces weld along the unrefined faces around the refined region (docs/method.md §7).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "duplexfit/polygonize.hpp"
+#include "node_store.hpp"
+
+namespace duplexfit::detail {
+
+/// A tetrahedron of the refined region, its corners on the lattice of the grid's nodes refined
+/// `factor` = 2^levels times (node (i, j, k) is lattice point factor·(i, j, k)). Bisection halves
+/// the edge x[0]–x[tag].
+struct FineTet {
+  std::array<std::array<std::int32_t, 3>, 4> x{};
+  std::uint8_t tag = 3;
+  std::uint8_t depth = 0;
+};
+
+/// The cells in play and their leaf tetrahedra: the seed cells bisected 3·levels times each (their
+/// tetrahedra have the size of cells `factor` times smaller) and the cells the conformity closure
+/// touched. Every face between a cell in play and one outside is an unrefined face of the grid.
+struct RefinedRegion {
+  int levels = 0;
+  std::int32_t factor = 1;
+  std::vector<std::int64_t> cells;     ///< linear cell ids (i + nx·(j + ny·k)), ascending
+  std::vector<std::size_t> offsets;    ///< tets of cells[c] are tets[offsets[c] .. offsets[c + 1])
+  std::vector<FineTet> tets;
+  std::int64_t seeds = 0;              ///< seed and ring cells
+  bool skipped = false;                ///< more of them than refineCells' maxCells
+  bool empty() const noexcept { return cells.empty(); }
+  bool contains(std::int64_t cellId) const;
+};
+
+/// Largest refinement level the grid's fine lattice can hold (0 when none): the doubled fine
+/// coordinates of every axis must fit in 21 bits.
+int maxRefineLevels(const Eigen::Vector3i& cells);
+
+/// Refines the seed cells `levels` times and the other cells within `dilation` cells of them (clipped
+/// to the grid) levels − 1 times, and closes the refinement so that the tetrahedral mesh is
+/// conforming. Deterministic. With more than maxCells seed and ring cells, refines nothing (skipped).
+RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::array<int, 3>>& seeds,
+                          int levels, int dilation, std::int64_t maxCells);
+
+/// The contour of one iso value over the refined region: vertices keyed like the grid extraction's
+/// (start node id · 8 + direction bits) when they lie on an unrefined grid edge, otherwise by
+/// kFineKeyBit | the packed doubled fine coordinates of the edge's midpoint; triangles oriented with
+/// normals toward decreasing f.
+struct PatchMesh {
+  static constexpr std::uint64_t kFineKeyBit = std::uint64_t{1} << 63;
+  std::vector<std::uint64_t> keys;
+  std::vector<double> xyz;
+  std::vector<std::int32_t> tris;
+};
+
+/// Contours the refined region for each iso value. Node values come from the store where sampled;
+/// the other lattice points are evaluated with sampler (in batches of batchSize; counted in
+/// stats.refinedEvaluations, samplerCalls and samplerSeconds). Appends to open the unmarked cells
+/// outside the region that a contour enters through the region's boundary.
+std::vector<PatchMesh> extractRefined(const RefinedRegion& region, const NodeStore& store,
+                                      const GridSpec& grid, const std::vector<double>& isoValues,
+                                      const FieldSampler& sampler, std::int64_t batchSize,
+                                      PolygonizeStats& stats, std::vector<std::array<int, 3>>& open);
+
+}  // namespace duplexfit::detail
