@@ -189,9 +189,6 @@ struct ProjectReport {
   std::size_t moved = 0;         ///< vertices moved onto the level set (extracted and new ones)
   std::size_t partial = 0;       ///< of the moved ones, moved half or a quarter of the way (the whole way was refused)
   std::size_t refused = 0;       ///< moves refused by the normal, angle or float32 checks
-  /// Vertices refused or moved only part of the way, tried once more after the others had moved, and
-  /// how many of those then moved (the whole way or part of it).
-  std::size_t retried = 0, retryMoved = 0;
   std::size_t notConverged = 0;  ///< Newton paths that did not reach the level set (or ran past maxMove)
   std::size_t splits = 0;        ///< edges split
   int rounds = 0;                ///< split rounds made

@@ -125,8 +125,6 @@ void addFinishReport(Json& m, const MeshFinishReport& f) {
                          {"moved", p.moved},
                          {"partial", p.partial},
                          {"refused", p.refused},
-                         {"retried", p.retried},
-                         {"retry_moved", p.retryMoved},
                          {"not_converged", p.notConverged},
                          {"splits", p.splits},
                          {"rounds", p.rounds},

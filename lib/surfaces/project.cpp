@@ -160,8 +160,7 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
   // path ended there), zero where not known; the first round predicts most faces' centres from them.
   std::vector<Vec> vg;
   // Projects the listed vertices (in index order, each move checked against the positions so far).
-  // again (optional) collects the vertices moved only part of the way or not at all.
-  const auto project = [&](const std::vector<Index>& list, std::vector<Index>* again) {
+  const auto project = [&](const std::vector<Index>& list) {
     std::vector<Index> go;
     if (list.empty()) return;
     Points q(static_cast<Eigen::Index>(list.size()), 3);
@@ -215,13 +214,11 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
           }
           placed = true;
           rep.partial += part < 1.0 ? 1 : 0;
-          if (part < 1.0 && again != nullptr) again->push_back(go[i]);
           break;
         }
       }
       if (!placed) {
         ++rep.refused;
-        if (again != nullptr) again->push_back(go[i]);
         continue;
       }
       ++rep.moved;
@@ -235,21 +232,7 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
   std::vector<int> touched(nf, -1);  // the round that last split the face
   std::vector<char> gaveUp(nf, 0);   // a split of the face was refused
   for (int round = 0;; ++round) {
-    std::vector<Index> again;
-    project(candidates, &again);
-    if (!again.empty()) {
-      // Once the vertices around have moved, a refused or partial move may pass: try those once more (the
-      // report counts them again where they are refused again).
-      std::sort(again.begin(), again.end());
-      const ProjectReport before = rep;
-      project(again, nullptr);
-      rep.retried += again.size();
-      rep.retryMoved += rep.moved - before.moved;
-      rep.moved = before.moved;
-      rep.refused = before.refused;
-      rep.partial = before.partial;
-      rep.notConverged = before.notConverged;
-    }
+    project(candidates);
     if (!(o.target > 0.0) || round == o.rounds || measure.empty()) break;
     // The faces' centres: first order, then the Newton path where that is beyond the target. In the first
     // round a face whose three vertices lie on the level set with known gradients is predicted instead:
