@@ -210,8 +210,17 @@ inline void addMeshFinishOptions(CLI::App& app, MeshFinishOptions& o) {
       ->type_name("N");
 }
 
-/// --refine-levels N of fit and mesh (PolygonizeOptions::refineLevels) and --refine-dilation N.
-inline void addRefineOptions(CLI::App& app, PolygonizeOptions& o) {
+/// --refine-levels N of fit and mesh (PolygonizeOptions::refineLevels), --refine-dilation N and
+/// --refine-tolerance F (SurfaceOptions::refineTolerance).
+inline void addRefineOptions(CLI::App& app, PolygonizeOptions& o, double& tolerance) {
+  addNumber(app, "refine-tolerance", tolerance,
+            "refine only where the grid's contour is farther than F of the largest side from the level set (default "
+            "2.5e-4; 0: every cell with a layer one node thick)")
+      ->check([](const std::string& v) {
+        const double d = parseFinite(v, "refine-tolerance");
+        if (d < 0 || d > 1) throw UsageError("option --refine-tolerance must be between 0 and 1");
+        return std::string();
+      });
   addInteger(app, "refine-levels", o.refineLevels,
              "contour cells where the grid is too coarse for the field (a plate or gap about one node thick) on a "
              "grid 2^N times finer, N = 0..3 (default 2; 0: off)")

@@ -89,6 +89,10 @@ struct PolygonizeOptions {
   /// grid's scale have no such layer and give the same meshes as without refinement. 0: off.
   int refineLevels = 2;
   bool refineThin = true;  ///< detect the cells above (false: only refineCells)
+  /// > 0: of those cells, refine only where the contour is farther than this from the level set (the
+  /// centre of a contour polygon has |f − iso| above it; model units, one evaluation per polygon). Along
+  /// sharp edges such layers are common and the plain contour is close enough; in thin plates it is not.
+  double refineTolerance = 0.0;
   int refineDilation = 1;
   /// Refined cells requested by the caller (refined like the detected ones).
   std::vector<std::array<int, 3>> refineCells;
@@ -129,6 +133,7 @@ struct PolygonizeStats {
   std::int64_t continuedCells = 0;
   std::int64_t storageBytes = 0;   ///< memory held by the sampled node values (tiles + lattice)
   std::int64_t thinCells = 0;          ///< crossed cells with a node layer one node thick
+  std::int64_t deviatingCells = 0;     ///< of those, the ones beyond refineTolerance (all of them without it)
   std::int64_t refinedSeeds = 0;       ///< cells refined fully (the thin ones and their neighbours)
   std::int64_t refinedCells = 0;       ///< cells contoured on refined tetrahedra (seeds and closure)
   std::int64_t refinedTetrahedra = 0;  ///< their tetrahedra

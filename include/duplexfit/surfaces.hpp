@@ -24,6 +24,11 @@ struct SurfaceOptions {
   int minResolution = 128;
   Precision precision = Precision::Float;
   PolygonizeOptions polygonize{};
+  /// Unless polygonize.refineTolerance is set, the local refinement (PolygonizeOptions::refineLevels) keeps
+  /// the thin cells whose contour is farther than this fraction of the field's largest side from the level
+  /// set: a quarter of the level-set deviation the pipelines report against (0.1% of the side). 0: every
+  /// thin cell.
+  double refineTolerance = 2.5e-4;
   /// What the pipelines (runPipeline, runMeshPipeline) do with each mesh after extraction and the
   /// small-component drop: cleaning, optional simplification, the deviation from the level set
   /// (finishSurfaces). extractSurfaces itself returns the marching-tetrahedra meshes as they are.

@@ -241,6 +241,7 @@ Json shellJson(const PipelineResult& result, const std::vector<std::string>& mes
 /// The local refinement's counts (PolygonizeStats).
 Json refinementJson(const PolygonizeStats& s) {
   return Json{{"thin_cells", s.thinCells},
+              {"deviating_cells", s.deviatingCells},
               {"seed_cells", s.refinedSeeds},
               {"cells", s.refinedCells},
               {"tetrahedra", s.refinedTetrahedra},

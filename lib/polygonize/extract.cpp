@@ -108,10 +108,10 @@ bool inPlane(std::uint64_t key, int z, std::int64_t planeNodes) {
 
 class Extractor {
  public:
-  /// region: cells left to the refined contour (skipped here), or null.
+  /// regions: per iso value, the cells left to the refined contour (skipped here); null: none.
   Extractor(const NodeStore& store, const GridSpec& grid, const std::vector<double>& isos,
-            const RefinedRegion* region)
-      : store_(store), isos_(isos), region_(region), coords_(nodeCoordinates(grid)), table_(kuhnTable()) {
+            const std::vector<RefinedRegion>* regions)
+      : store_(store), isos_(isos), regions_(regions), coords_(nodeCoordinates(grid)), table_(kuhnTable()) {
     double largest = 0.0;
     for (const auto& c : coords_) {
       for (double x : c) largest = std::max(largest, std::abs(x));
@@ -140,9 +140,9 @@ class Extractor {
     }
   }
 
- /// Cells of [z0, z1) whose node values show a layer one node thick for some iso value (see
-  /// thinCells).
-  void thin(int z0, int z1, std::vector<Cell>& out) const {
+  /// Cells of [z0, z1) whose node values show a layer one node thick, per iso value (out[q]; see
+  /// PolygonizeOptions::refineLevels).
+  void thin(int z0, int z1, std::vector<std::vector<Cell>>& out) const {
     forEachCell(z0, z1, [&](int i, int j, int k, const float* v, const std::vector<char>& active) {
       for (std::size_t q = 0; q < isos_.size(); ++q) {
         if (!active[q]) continue;
@@ -150,9 +150,10 @@ class Extractor {
         int mask = 0;
         for (int c = 0; c < 8; ++c) mask |= (static_cast<double>(v[c]) >= iso) << c;
         if (mask == 0 || mask == 255) continue;
-        for (int c = 0; c < 8; ++c) {
+        bool found = false;
+        for (int c = 0; c < 8 && !found; ++c) {
           const bool side = (mask >> c) & 1;
-          for (int a = 0; a < 3; ++a) {
+          for (int a = 0; a < 3 && !found; ++a) {
             // The corner's neighbours along axis a: one in the cell, one outside it.
             if (((mask >> (c ^ (1 << a))) & 1) == side) continue;
             const int step = ((c >> a) & 1) != 0 ? 1 : -1;
@@ -161,12 +162,10 @@ class Extractor {
             if (n[a] < 0 || n[a] > store_.cells(a)) continue;
             const float w = store_.value(n[0], n[1], n[2]);
             if (std::isnan(w) || std::isinf(w)) continue;
-            if ((static_cast<double>(w) >= iso) != side) {
-              out.push_back({i, j, k});
-              return;
-            }
+            found = (static_cast<double>(w) >= iso) != side;
           }
         }
+        if (found) out[q].push_back({i, j, k});
       }
     });
   }
@@ -176,10 +175,10 @@ class Extractor {
              std::vector<Cell>& open) const {
     const std::int64_t nx = store_.cells(0), ny = store_.cells(1);
     forEachCell(z0, z1, [&](int i, int j, int k, const float* v, const std::vector<char>& active) {
-      if (region_ != nullptr && region_->contains(i + nx * (j + ny * std::int64_t{k}))) return;
       bool crossed = false;
       for (std::size_t q = 0; q < isos_.size(); ++q) {
         if (!active[q]) continue;
+        if (regions_ != nullptr && (*regions_)[q].contains(i + nx * (j + ny * std::int64_t{k}))) continue;
         const double iso = isos_[q];
         int mask = 0;
         for (int c = 0; c < 8; ++c) mask |= (static_cast<double>(v[c]) >= iso) << c;
@@ -323,7 +322,7 @@ class Extractor {
 
   const NodeStore& store_;
   const std::vector<double>& isos_;
-  const RefinedRegion* region_;
+  const std::vector<RefinedRegion>* regions_;
   std::array<std::vector<double>, 3> coords_;
   const KuhnTable& table_;
   double minNodeDistance_ = 0.0;  ///< see kMinNodeDistanceUlps
@@ -420,6 +419,68 @@ Mesh merge(std::vector<ChunkMesh*>& chunks, const std::vector<int>& z0, std::int
   return mesh;
 }
 
+/// The thin cells of one iso value whose contour is farther than tol from the level set somewhere: the
+/// centre of each contour polygon (the mean of its crossings, placed as the extraction places them) is
+/// evaluated, and |f − iso| > tol keeps the cell (f approximates a distance near its level sets).
+std::vector<Cell> deviatingCells(const NodeStore& store, const GridSpec& grid, double iso, const std::vector<Cell>& thin,
+                                 const FieldSampler& sampler, double tol, std::int64_t batchSize, PolygonizeStats& stats) {
+  const KuhnTable& table = kuhnTable();
+  const std::array<std::vector<double>, 3> coords = nodeCoordinates(grid);
+  std::vector<Eigen::Vector3d> centres;
+  std::vector<std::size_t> owner;
+  for (std::size_t t = 0; t < thin.size(); ++t) {
+    const Cell& c = thin[t];
+    float v[8];
+    int mask = 0;
+    for (int k = 0; k < 8; ++k) {
+      v[k] = store.value(c[0] + (k & 1), c[1] + ((k >> 1) & 1), c[2] + ((k >> 2) & 1));
+      mask |= (static_cast<double>(v[k]) >= iso) << k;
+    }
+    const KuhnCase& cs = table.cases[mask];
+    for (int p = 0; p < cs.count; ++p) {
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      for (int e = 0; e < cs.polygons[p].size; ++e) {
+        const KuhnEdge& edge = table.edges[cs.polygons[p].edges[e]];
+        const double f0 = static_cast<double>(v[edge.from]), f1 = static_cast<double>(v[edge.to]);
+        const double s = std::clamp((iso - f0) / (f1 - f0), 0.0, 1.0);
+        for (int d = 0; d < 3; ++d) {
+          const std::size_t n0 = static_cast<std::size_t>(c[static_cast<std::size_t>(d)] + ((edge.from >> d) & 1));
+          const std::size_t n1 = static_cast<std::size_t>(c[static_cast<std::size_t>(d)] + ((edge.to >> d) & 1));
+          sum(d) += coords[static_cast<std::size_t>(d)][n0] + s * (coords[static_cast<std::size_t>(d)][n1] - coords[static_cast<std::size_t>(d)][n0]);
+        }
+      }
+      centres.push_back(sum / cs.polygons[p].size);
+      owner.push_back(t);
+    }
+  }
+  std::vector<char> keep(thin.size(), 0);
+  for (std::size_t first = 0; first < centres.size();) {
+    const std::size_t n = std::min<std::size_t>(centres.size() - first, static_cast<std::size_t>(batchSize));
+    Points q(static_cast<Eigen::Index>(n), 3);
+    for (std::size_t i = 0; i < n; ++i) q.row(static_cast<Eigen::Index>(i)) = centres[first + i].transpose();
+    Eigen::VectorXd f;
+    const auto start = std::chrono::steady_clock::now();
+    sampler(q, f);
+    stats.samplerSeconds += secondsSince(start);
+    ++stats.samplerCalls;
+    if (f.size() != static_cast<Eigen::Index>(n)) {
+      throw InvalidArgument("polygonize: the sampler returned " + std::to_string(f.size()) + " values for " +
+                            std::to_string(n) + " contour centres");
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      const double d = std::abs(f(static_cast<Eigen::Index>(i)) - iso);
+      if (!(d <= tol)) keep[owner[first + i]] = 1;  // NaN keeps the cell too
+    }
+    stats.refinedEvaluations += static_cast<std::int64_t>(n);
+    first += n;
+  }
+  std::vector<Cell> out;
+  for (std::size_t t = 0; t < thin.size(); ++t) {
+    if (keep[t] != 0) out.push_back(thin[t]);
+  }
+  return out;
+}
+
 }  // namespace
 
 Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vector<double>& isoValues,
@@ -441,14 +502,15 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
   std::vector<std::vector<Cell>> open(z0.size());
   std::exception_ptr error;
 
-  // Where the grid is too coarse for the field (layers one node thick), a refined region.
-  RefinedRegion region;
+  // Where the grid is too coarse for the field (layers one node thick), a refined region per iso value.
+  std::vector<RefinedRegion> regions(isoValues.size());
+  bool refined = false;
   if (options.refineLevels > 0 && (options.refineThin || !options.refineCells.empty()) &&
       options.refineLevels <= maxRefineLevels(grid.cells)) {
-    std::vector<Cell> seeds;
+    std::vector<std::vector<Cell>> seeds(isoValues.size());
     if (options.refineThin) {
       const Extractor detector(store, grid, isoValues, nullptr);
-      std::vector<std::vector<Cell>> thin(z0.size());
+      std::vector<std::vector<std::vector<Cell>>> thin(z0.size(), std::vector<std::vector<Cell>>(isoValues.size()));
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
       for (int c = 0; c < chunkCount; ++c) {
         try {
@@ -460,18 +522,30 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
         }
       }
       if (error) std::rethrow_exception(error);
-      for (const auto& t : thin) seeds.insert(seeds.end(), t.begin(), t.end());
+      for (const auto& chunk : thin) {
+        for (std::size_t q = 0; q < isoValues.size(); ++q) seeds[q].insert(seeds[q].end(), chunk[q].begin(), chunk[q].end());
+      }
     }
-    stats.thinCells = static_cast<std::int64_t>(seeds.size());
-    seeds.insert(seeds.end(), options.refineCells.begin(), options.refineCells.end());
-    region = refineCells(grid.cells, seeds, options.refineLevels, options.refineDilation, options.maxRefinedCells);
-    stats.refinementSkipped = region.skipped;
-    stats.refinedCells = static_cast<std::int64_t>(region.cells.size());
-    stats.refinedSeeds = region.seeds;
-    stats.refinedTetrahedra = static_cast<std::int64_t>(region.tets.size());
+    stats.thinCells = stats.deviatingCells = stats.refinedSeeds = stats.refinedCells = stats.refinedTetrahedra = 0;
+    stats.refinementSkipped = false;
+    for (std::size_t q = 0; q < isoValues.size(); ++q) {
+      stats.thinCells += static_cast<std::int64_t>(seeds[q].size());
+      if (options.refineTolerance > 0.0 && !seeds[q].empty()) {
+        seeds[q] = deviatingCells(store, grid, isoValues[q], seeds[q], sampler, options.refineTolerance,
+                                  options.batchSize, stats);
+      }
+      stats.deviatingCells += static_cast<std::int64_t>(seeds[q].size());
+      seeds[q].insert(seeds[q].end(), options.refineCells.begin(), options.refineCells.end());
+      regions[q] = refineCells(grid.cells, seeds[q], options.refineLevels, options.refineDilation, options.maxRefinedCells);
+      stats.refinementSkipped = stats.refinementSkipped || regions[q].skipped;
+      stats.refinedCells += static_cast<std::int64_t>(regions[q].cells.size());
+      stats.refinedSeeds += regions[q].seeds;
+      stats.refinedTetrahedra += static_cast<std::int64_t>(regions[q].tets.size());
+      refined = refined || !regions[q].empty();
+    }
   }
 
-  const Extractor extractor(store, grid, isoValues, region.empty() ? nullptr : &region);
+  const Extractor extractor(store, grid, isoValues, refined ? &regions : nullptr);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
   for (int c = 0; c < chunkCount; ++c) {
     try {
@@ -489,12 +563,14 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
   for (auto& o : open) result.openCells.insert(result.openCells.end(), o.begin(), o.end());
   if (!result.openCells.empty()) return result;  // the caller samples more and extracts again
   std::vector<PatchMesh> patches(isoValues.size());
-  if (!region.empty()) {
+  for (std::size_t q = 0; q < isoValues.size(); ++q) {
+    if (regions[q].empty()) continue;
     const auto start = std::chrono::steady_clock::now();
-    patches = extractRefined(region, store, grid, isoValues, sampler, options.batchSize, stats, result.openCells);
+    patches[q] = std::move(extractRefined(regions[q], store, grid, {isoValues[q]}, sampler, options.batchSize, stats,
+                                          result.openCells).front());
     stats.refinedSeconds += secondsSince(start);
-    if (!result.openCells.empty()) return result;
   }
+  if (!result.openCells.empty()) return result;
 
   const std::int64_t planeNodes =
       static_cast<std::int64_t>(store.cells(0) + 1) * (store.cells(1) + 1);

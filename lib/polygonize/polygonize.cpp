@@ -59,6 +59,9 @@ void validateOptions(const PolygonizeOptions& o) {
   if (o.refineDilation < 0 || o.refineDilation > 4) {
     throw InvalidArgument("PolygonizeOptions::refineDilation must be 0 to 4, got " + std::to_string(o.refineDilation));
   }
+  if (!(o.refineTolerance >= 0.0) || !std::isfinite(o.refineTolerance)) {
+    throw InvalidArgument("PolygonizeOptions::refineTolerance must be finite and ≥ 0, got " + std::to_string(o.refineTolerance));
+  }
   if (o.maxRefinedCells < 0) {
     throw InvalidArgument("PolygonizeOptions::maxRefinedCells must be ≥ 0, got " + std::to_string(o.maxRefinedCells));
   }

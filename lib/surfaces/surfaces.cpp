@@ -65,8 +65,12 @@ SurfaceResult extractSurfaces(const FieldEvaluator& evaluator, const ImplicitFie
   };
   // A level set that reaches the grid's boundary would be cut open there: grow the box on the sides
   // it touches (same cell size) and extract again, a few times at most.
+  PolygonizeOptions polygonizeOptions = options.polygonize;
+  if (polygonizeOptions.refineTolerance == 0.0) {
+    polygonizeOptions.refineTolerance = options.refineTolerance * field.bounds().sizes().maxCoeff();
+  }
   for (int attempt = 0;; ++attempt) {
-    PolygonizeResult r = polygonize(sampler, out.grid, isoValues, options.polygonize, interrupter);
+    PolygonizeResult r = polygonize(sampler, out.grid, isoValues, polygonizeOptions, interrupter);
     const Eigen::Vector3d lo = out.grid.box.min(), hi = out.grid.box.max();
     const double eps = 1e-9 * (hi - lo).maxCoeff();
     Eigen::Vector3d growLo = Eigen::Vector3d::Zero(), growHi = Eigen::Vector3d::Zero();

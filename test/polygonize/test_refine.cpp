@@ -237,5 +237,17 @@ TEST_SUITE("polygonize") {
     INFO("face-centre deviation / h: plain " << before / h << ", refined " << after / h);
     CHECK(before > 0.3 * h);
     CHECK(after < 0.5 * before);
+    CHECK(b.stats.deviatingCells == b.stats.thinCells);  // no tolerance: every thin cell is a seed
+    // With a tolerance, only the thin cells whose contour is off by more are refined (the plate's flat
+    // middle, where the plain contour is already close, is left) and the worst face still improves.
+    PolygonizeOptions tolerant;
+    tolerant.refineTolerance = 0.25 * h;
+    const PolygonizeResult c = polygonize(samplerOf(f), g, {0.0}, tolerant);
+    INFO("thin " << c.stats.thinCells << ", deviating " << c.stats.deviatingCells);
+    CHECK(c.stats.deviatingCells > 0);
+    CHECK(c.stats.deviatingCells < c.stats.thinCells);
+    CHECK(c.meshes[0].faces.rows() < b.meshes[0].faces.rows());
+    CHECK(topology(c.meshes[0]).closedManifold());
+    CHECK(centreDeviation(c.meshes[0], f) < 0.5 * before);
   }
 }
