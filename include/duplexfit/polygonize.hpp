@@ -86,8 +86,9 @@ struct PolygonizeOptions {
   /// halved (cells 2^refineLevels times smaller), by conforming bisection of its Kuhn tetrahedra; the
   /// closure brings in the cells needed to keep the mesh conforming, so the meshes stay watertight and
   /// their vertices on the unrefined edges are those of the plain extraction. Smooth fields at the
-  /// grid's scale have no such layer and give the same meshes as without refinement. 0: off.
-  int refineLevels = 2;
+  /// grid's scale have no such layer and give the same meshes as without refinement. 0 (the default
+  /// here): off; the pipelines' SurfaceOptions turn it on with 2 levels and a tolerance.
+  int refineLevels = 0;
   bool refineThin = true;  ///< detect the cells above (false: only refineCells)
   /// > 0: of those cells, refine only where the contour is farther than this from the level set (the
   /// centre of a contour polygon has |f − iso| above it; model units, one evaluation per polygon). Along

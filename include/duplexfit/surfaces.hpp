@@ -23,7 +23,12 @@ struct SurfaceOptions {
   /// clouds whose σ_M/2 would give a visibly faceted mesh.
   int minResolution = 128;
   Precision precision = Precision::Float;
-  PolygonizeOptions polygonize{};
+  /// The pipelines refine thin cells 2 levels (PolygonizeOptions::refineLevels; `--refine-levels`).
+  PolygonizeOptions polygonize = [] {
+    PolygonizeOptions o;
+    o.refineLevels = 2;
+    return o;
+  }();
   /// Unless polygonize.refineTolerance is set, the local refinement (PolygonizeOptions::refineLevels) keeps
   /// the thin cells whose contour is farther than this fraction of the field's largest side from the level
   /// set: a quarter of the level-set deviation the pipelines report against (0.1% of the side). 0: every

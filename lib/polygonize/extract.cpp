@@ -454,26 +454,9 @@ std::vector<Cell> deviatingCells(const NodeStore& store, const GridSpec& grid, d
     }
   }
   std::vector<char> keep(thin.size(), 0);
-  for (std::size_t first = 0; first < centres.size();) {
-    const std::size_t n = std::min<std::size_t>(centres.size() - first, static_cast<std::size_t>(batchSize));
-    Points q(static_cast<Eigen::Index>(n), 3);
-    for (std::size_t i = 0; i < n; ++i) q.row(static_cast<Eigen::Index>(i)) = centres[first + i].transpose();
-    Eigen::VectorXd f;
-    const auto start = std::chrono::steady_clock::now();
-    sampler(q, f);
-    stats.samplerSeconds += secondsSince(start);
-    ++stats.samplerCalls;
-    if (f.size() != static_cast<Eigen::Index>(n)) {
-      throw InvalidArgument("polygonize: the sampler returned " + std::to_string(f.size()) + " values for " +
-                            std::to_string(n) + " contour centres");
-    }
-    for (std::size_t i = 0; i < n; ++i) {
-      const double d = std::abs(f(static_cast<Eigen::Index>(i)) - iso);
-      if (!(d <= tol)) keep[owner[first + i]] = 1;  // NaN keeps the cell too
-    }
-    stats.refinedEvaluations += static_cast<std::int64_t>(n);
-    first += n;
-  }
+  evaluateInBatches(sampler, centres, batchSize, stats, "contour centres", [&](std::size_t i, double f) {
+    if (!(std::abs(f - iso) <= tol)) keep[owner[i]] = 1;  // NaN keeps the cell too
+  });
   std::vector<Cell> out;
   for (std::size_t t = 0; t < thin.size(); ++t) {
     if (keep[t] != 0) out.push_back(thin[t]);

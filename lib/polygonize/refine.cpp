@@ -125,16 +125,18 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
   // Seeds bisected uniformly down to the fine size, then the cells around them (within `dilation`)
   // one level less.
   const int fineDepth = 3 * levels;
+  /// Bisects tets[t] in place (its second child appended), recording a new midpoint.
+  const auto split = [&](std::vector<FineTet>& tets, std::size_t t) {
+    FineTet c1, c2;
+    P3 z{};
+    bisect(tets[t], c1, c2, z);
+    tets[t] = c1;
+    tets.push_back(c2);
+    if (vertices.insert(pack(z)).second) fresh.push_back(z);
+  };
   const auto refineTo = [&](std::vector<FineTet>& tets, int depth) {
     for (std::size_t t = 0; t < tets.size(); ++t) {
-      while (tets[t].depth < depth) {
-        FineTet c1, c2;
-        P3 z{};
-        bisect(tets[t], c1, c2, z);
-        tets[t] = c1;
-        tets.push_back(c2);
-        if (vertices.insert(pack(z)).second) fresh.push_back(z);
-      }
+      while (tets[t].depth < depth) split(tets, t);
     }
   };
   // The seeds and their rings, each cell once (a ring cell that is also a seed is a seed).
@@ -206,12 +208,7 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
           if (tets[t].depth >= maxDepth) {
             throw std::logic_error("refineCells: the conformity closure does not terminate");
           }
-          FineTet c1, c2;
-          P3 z{};
-          bisect(tets[t], c1, c2, z);
-          tets[t] = c1;
-          tets.push_back(c2);
-          if (vertices.insert(pack(z)).second) fresh.push_back(z);
+          split(tets, t);
         }
       }
     }
@@ -376,6 +373,27 @@ class PatchBuilder {
 
 }  // namespace
 
+void evaluateInBatches(const FieldSampler& sampler, const std::vector<Eigen::Vector3d>& points, std::int64_t batchSize,
+                       PolygonizeStats& stats, const char* what, const std::function<void(std::size_t, double)>& use) {
+  for (std::size_t first = 0; first < points.size();) {
+    const std::size_t n = std::min<std::size_t>(points.size() - first, static_cast<std::size_t>(batchSize));
+    Points q(static_cast<Eigen::Index>(n), 3);
+    for (std::size_t i = 0; i < n; ++i) q.row(static_cast<Eigen::Index>(i)) = points[first + i].transpose();
+    Eigen::VectorXd f;
+    const auto start = std::chrono::steady_clock::now();
+    sampler(q, f);
+    stats.samplerSeconds += secondsSince(start);
+    ++stats.samplerCalls;
+    if (f.size() != static_cast<Eigen::Index>(n)) {
+      throw InvalidArgument("polygonize: the sampler returned " + std::to_string(f.size()) + " values for " +
+                            std::to_string(n) + " " + what);
+    }
+    for (std::size_t i = 0; i < n; ++i) use(first + i, f(static_cast<Eigen::Index>(i)));
+    stats.refinedEvaluations += static_cast<std::int64_t>(n);
+    first += n;
+  }
+}
+
 std::vector<PatchMesh> extractRefined(const RefinedRegion& region, const NodeStore& store,
                                       const GridSpec& grid, const std::vector<double>& isoValues,
                                       const FieldSampler& sampler, std::int64_t batchSize,
@@ -409,31 +427,15 @@ std::vector<PatchMesh> extractRefined(const RefinedRegion& region, const NodeSto
     }
     return x;
   };
-  for (std::size_t first = 0; first < pending.size();) {
-    const std::size_t n = std::min<std::size_t>(pending.size() - first, static_cast<std::size_t>(batchSize));
-    Points q(static_cast<Eigen::Index>(n), 3);
-    for (std::size_t i = 0; i < n; ++i) q.row(static_cast<Eigen::Index>(i)) = position(pending[first + i]).transpose();
-    Eigen::VectorXd f;
-    const auto start = std::chrono::steady_clock::now();
-    sampler(q, f);
-    stats.samplerSeconds += secondsSince(start);
-    ++stats.samplerCalls;
-    if (f.size() != static_cast<Eigen::Index>(n)) {
-      throw InvalidArgument("polygonize: the sampler returned " + std::to_string(f.size()) + " values for " +
-                            std::to_string(n) + " refined points");
+  std::vector<Eigen::Vector3d> at(pending.size());
+  for (std::size_t i = 0; i < pending.size(); ++i) at[i] = position(pending[i]);
+  evaluateInBatches(sampler, at, batchSize, stats, "refined points", [&](std::size_t i, double v) {
+    if (!std::isfinite(v)) {
+      throw InvalidArgument("polygonize: the field is not finite at refined point (" + std::to_string(at[i](0)) + ", " +
+                            std::to_string(at[i](1)) + ", " + std::to_string(at[i](2)) + ")");
     }
-    for (std::size_t i = 0; i < n; ++i) {
-      const double v = f(static_cast<Eigen::Index>(i));
-      if (!std::isfinite(v)) {
-        const Eigen::Vector3d x = position(pending[first + i]);
-        throw InvalidArgument("polygonize: the field is not finite at refined point (" + std::to_string(x(0)) + ", " +
-                              std::to_string(x(1)) + ", " + std::to_string(x(2)) + ")");
-      }
-      values[pack(pending[first + i])] = static_cast<float>(v);
-    }
-    stats.refinedEvaluations += static_cast<std::int64_t>(n);
-    first += n;
-  }
+    values[pack(pending[i])] = static_cast<float>(v);
+  });
 
   double largest = 0.0;
   for (const auto& c : coords) {

@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "duplexfit/polygonize.hpp"
@@ -59,6 +60,12 @@ struct PatchMesh {
   std::vector<double> xyz;
   std::vector<std::int32_t> tris;
 };
+
+/// Evaluates the field at points[0 .. n) in batches of at most batchSize (counted in stats:
+/// refinedEvaluations, samplerCalls, samplerSeconds) and calls use(i, f(points[i])) for each; `what` names
+/// the points in the error for a sampler that returns the wrong count.
+void evaluateInBatches(const FieldSampler& sampler, const std::vector<Eigen::Vector3d>& points, std::int64_t batchSize,
+                       PolygonizeStats& stats, const char* what, const std::function<void(std::size_t, double)>& use);
 
 /// Contours the refined region for each iso value. Node values come from the store where sampled;
 /// the other lattice points are evaluated with sampler (in batches of batchSize; counted in

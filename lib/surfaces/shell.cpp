@@ -329,7 +329,11 @@ ShellResult drainShell(const FieldSampler& field, const GridSpec& grid, const Me
       values[i] = g;
     }
   };
-  PolygonizeResult p = polygonize(drained, grid, {0.0}, polygonizeOptions, interrupter);
+  // No local refinement here: the shell's wall is |δ| thick, often a node or two, so nearly every cell of
+  // it would count as thin (the zero and offset meshes are refined on their own).
+  PolygonizeOptions plain = polygonizeOptions;
+  plain.refineLevels = 0;
+  PolygonizeResult p = polygonize(drained, grid, {0.0}, plain, interrupter);
   result.mesh = dropSmallCavities(std::move(p.meshes[0]), options.minCavityFraction, r.droppedCavities);
   finishReport(result.mesh, options, r);
   r.seconds = secondsSince(start);

@@ -183,7 +183,7 @@ TEST_SUITE("polygonize") {
     g.cells = Eigen::Vector3i::Constant(24);
     const Field ball = [](const Eigen::Vector3d& x) { return 0.55 - (x - Eigen::Vector3d(0.03, -0.02, 0.01)).norm(); };
     PolygonizeOptions plain, refined;
-    plain.refineLevels = 0;
+    refined.refineLevels = 2;
     refined.refineThin = false;
     // Cells on the sphere (and a few away from it, which contribute nothing).
     for (int i = 0; i < 24; i += 3) refined.refineCells.push_back({i, 12, 12});
@@ -222,10 +222,10 @@ TEST_SUITE("polygonize") {
     const double h = g.cellSize()(0);
     const Field f = plate(Eigen::Vector3d(0.013, -0.021, 0.007), Eigen::Vector3d(0.3, 0.2, 0.93).normalized(),
                           0.6 * h, 0.6);
-    PolygonizeOptions plain;
-    plain.refineLevels = 0;
+    PolygonizeOptions plain, all;
+    all.refineLevels = 2;
     const PolygonizeResult a = polygonize(samplerOf(f), g, {0.0}, plain);
-    const PolygonizeResult b = polygonize(samplerOf(f), g, {0.0});
+    const PolygonizeResult b = polygonize(samplerOf(f), g, {0.0}, all);
     CHECK(a.stats.thinCells == 0);
     CHECK(b.stats.thinCells > 0);
     CHECK(!b.stats.refinementSkipped);
@@ -240,7 +240,7 @@ TEST_SUITE("polygonize") {
     CHECK(b.stats.deviatingCells == b.stats.thinCells);  // no tolerance: every thin cell is a seed
     // With a tolerance, only the thin cells whose contour is off by more are refined (the plate's flat
     // middle, where the plain contour is already close, is left) and the worst face still improves.
-    PolygonizeOptions tolerant;
+    PolygonizeOptions tolerant = all;
     tolerant.refineTolerance = 0.25 * h;
     const PolygonizeResult c = polygonize(samplerOf(f), g, {0.0}, tolerant);
     INFO("thin " << c.stats.thinCells << ", deviating " << c.stats.deviatingCells);
