@@ -63,7 +63,8 @@ void bisect(const FineTet& t, FineTet& c1, FineTet& c2, P3& z) {
   c1.depth = c2.depth = static_cast<std::uint8_t>(t.depth + 1);
 }
 
-/// The 6 Kuhn tetrahedra of cell c, corners ordered along their monotone paths (tag 3).
+}  // namespace
+
 void kuhnTets(const std::array<int, 3>& c, std::int32_t factor, std::vector<FineTet>& out) {
   const int perms[6][2] = {{0, 1}, {0, 2}, {1, 0}, {1, 2}, {2, 0}, {2, 1}};
   for (const auto& p : perms) {
@@ -79,8 +80,6 @@ void kuhnTets(const std::array<int, 3>& c, std::int32_t factor, std::vector<Fine
     out.push_back(t);
   }
 }
-
-}  // namespace
 
 bool RefinedRegion::contains(std::int64_t cellId) const {
   return std::binary_search(cells.begin(), cells.end(), cellId);

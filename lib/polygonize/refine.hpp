@@ -40,6 +40,10 @@ struct RefinedRegion {
   bool contains(std::int64_t cellId) const;
 };
 
+/// Appends the 6 Kuhn tetrahedra of cell c on the lattice refined `factor` times, corners ordered along
+/// their monotone paths from the cell's lowest corner to its highest (tag 3).
+void kuhnTets(const std::array<int, 3>& c, std::int32_t factor, std::vector<FineTet>& out);
+
 /// Largest refinement level the grid's fine lattice can hold (0 when none): the doubled fine
 /// coordinates of every axis must fit in 21 bits.
 int maxRefineLevels(const Eigen::Vector3i& cells);

@@ -79,25 +79,6 @@ bool onGridBoundary(const Face& f, const Eigen::Vector3i& cells, std::int32_t fa
   return false;
 }
 
-/// The Kuhn tetrahedra of one unrefined cell on the fine lattice.
-std::vector<FineTet> plainCell(int i, int j, int k, std::int32_t factor) {
-  std::vector<FineTet> out;
-  const int perms[6][2] = {{0, 1}, {0, 2}, {1, 0}, {1, 2}, {2, 0}, {2, 1}};
-  for (const auto& p : perms) {
-    const int a = 1 << p[0], b = 1 << p[1];
-    const int corners[4] = {0, a, a | b, 7};
-    FineTet t;
-    for (int v = 0; v < 4; ++v) {
-      const int c[3] = {i, j, k};
-      for (int d = 0; d < 3; ++d) {
-        t.x[static_cast<std::size_t>(v)][static_cast<std::size_t>(d)] = factor * (c[d] + ((corners[v] >> d) & 1));
-      }
-    }
-    out.push_back(t);
-  }
-  return out;
-}
-
 /// Signed distance of a disc-shaped plate (half-thickness t, radius r) through centre c with unit
 /// normal n, positive inside.
 Field plate(const Eigen::Vector3d& c, const Eigen::Vector3d& n, double t, double r) {
@@ -159,7 +140,9 @@ TEST_SUITE("polygonize") {
           for (int j = 0; j < cells(1); ++j) {
             for (int i = 0; i < cells(0); ++i) {
               if (r.contains(i + std::int64_t{cells(0)} * (j + std::int64_t{cells(1)} * k))) continue;
-              for (const FineTet& t : plainCell(i, j, k, r.factor)) addFaces(t, faces);
+              std::vector<FineTet> plain;
+              duplexfit::detail::kuhnTets({i, j, k}, r.factor, plain);
+              for (const FineTet& t : plain) addFaces(t, faces);
             }
           }
         }
