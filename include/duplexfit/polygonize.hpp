@@ -82,12 +82,13 @@ struct PolygonizeOptions {
   /// Local refinement where the grid is too coarse for the field: a crossed cell with a node whose
   /// neighbours on both sides along an axis lie on the other side of an iso value (a plate or gap about
   /// one node thick, which linear interpolation cannot follow: the contour bridges it or leaves holes)
-  /// is contoured, with its neighbours within refineDilation cells, on tetrahedra refineLevels times
-  /// halved (cells 2^refineLevels times smaller), by conforming bisection of its Kuhn tetrahedra; the
-  /// closure brings in the cells needed to keep the mesh conforming, so the meshes stay watertight and
-  /// their vertices on the unrefined edges are those of the plain extraction. Smooth fields at the
-  /// grid's scale have no such layer and give the same meshes as without refinement. 0 (the default
-  /// here): off; the pipelines' SurfaceOptions turn it on with 2 levels and a tolerance.
+  /// is contoured on tetrahedra refineLevels times halved (cells 2^refineLevels times smaller), and its
+  /// neighbours within refineDilation cells one level less, by conforming bisection of their Kuhn
+  /// tetrahedra; the closure brings in the cells needed to keep the mesh conforming, so the meshes stay
+  /// watertight and their vertices on the unrefined edges are those of the plain extraction. Smooth
+  /// surfaces have such layers too where they touch a grid line tangentially (a coarse sphere's poles):
+  /// refineTolerance leaves the cells whose contour is already close. 0 (the default here): off; the
+  /// pipelines' SurfaceOptions turn it on with 2 levels and a tolerance.
   int refineLevels = 0;
   bool refineThin = true;  ///< detect the cells above (false: only refineCells)
   /// > 0: of those cells, refine only where the contour is farther than this from the level set (the

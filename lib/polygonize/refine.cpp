@@ -45,6 +45,16 @@ bool midpoint(const P3& a, const P3& b, P3& m) {
   return true;
 }
 
+/// Coordinate along `axis` of fine lattice index `fine` (grid node fine / factor plus the fraction).
+double fineCoordinate(const std::array<std::vector<double>, 3>& coords, std::int32_t factor, int axis,
+                      std::int32_t fine) {
+  const auto& c = coords[static_cast<std::size_t>(axis)];
+  const auto node = static_cast<std::size_t>(fine / factor);
+  const std::int32_t rest = fine % factor;
+  if (rest == 0) return c[node];
+  return c[node] + static_cast<double>(rest) / static_cast<double>(factor) * (c[node + 1] - c[node]);
+}
+
 constexpr int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
 
 /// The two children of t (see the file comment).
@@ -295,14 +305,6 @@ class PatchBuilder {
   }
 
  private:
-  double coordinate(int axis, std::int32_t fine) const {
-    const auto& c = coords_[static_cast<std::size_t>(axis)];
-    const std::int32_t node = fine / region_.factor, rest = fine % region_.factor;
-    if (rest == 0) return c[static_cast<std::size_t>(node)];
-    const double s = static_cast<double>(rest) / static_cast<double>(region_.factor);
-    return c[static_cast<std::size_t>(node)] + s * (c[static_cast<std::size_t>(node) + 1] - c[static_cast<std::size_t>(node)]);
-  }
-
   /// The vertex on tetrahedron edge (a, b): an unrefined grid edge is keyed and placed exactly as the
   /// grid extraction does (from its lower node), a finer edge by its midpoint and from its endpoint
   /// of smaller packed key.
@@ -339,8 +341,8 @@ class PatchBuilder {
     const P3& p1 = t.x[static_cast<std::size_t>(to)];
     double x0[3], x1[3], length2 = 0.0;
     for (int d = 0; d < 3; ++d) {
-      x0[d] = coordinate(d, p0[static_cast<std::size_t>(d)]);
-      x1[d] = coordinate(d, p1[static_cast<std::size_t>(d)]);
+      x0[d] = fineCoordinate(coords_, region_.factor, d, p0[static_cast<std::size_t>(d)]);
+      x1[d] = fineCoordinate(coords_, region_.factor, d, p1[static_cast<std::size_t>(d)]);
       length2 += (x1[d] - x0[d]) * (x1[d] - x0[d]);
     }
     const double f0 = static_cast<double>(f[from]), f1 = static_cast<double>(f[to]);
@@ -415,19 +417,10 @@ std::vector<PatchMesh> extractRefined(const RefinedRegion& region, const NodeSto
       values.emplace(key, v);
     }
   }
-  const auto position = [&coords, F](const P3& p) {
-    Eigen::Vector3d x;
-    for (int a = 0; a < 3; ++a) {
-      const auto& c = coords[static_cast<std::size_t>(a)];
-      const std::int32_t node = p[static_cast<std::size_t>(a)] / F, rest = p[static_cast<std::size_t>(a)] % F;
-      x(a) = rest == 0 ? c[static_cast<std::size_t>(node)]
-                       : c[static_cast<std::size_t>(node)] +
-                             static_cast<double>(rest) / F * (c[static_cast<std::size_t>(node) + 1] - c[static_cast<std::size_t>(node)]);
-    }
-    return x;
-  };
   std::vector<Eigen::Vector3d> at(pending.size());
-  for (std::size_t i = 0; i < pending.size(); ++i) at[i] = position(pending[i]);
+  for (std::size_t i = 0; i < pending.size(); ++i) {
+    for (int a = 0; a < 3; ++a) at[i](a) = fineCoordinate(coords, F, a, pending[i][static_cast<std::size_t>(a)]);
+  }
   evaluateInBatches(sampler, at, batchSize, stats, "refined points", [&](std::size_t i, double v) {
     if (!std::isfinite(v)) {
       throw InvalidArgument("polygonize: the field is not finite at refined point (" + std::to_string(at[i](0)) + ", " +
