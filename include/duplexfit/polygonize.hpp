@@ -101,7 +101,20 @@ struct PolygonizeOptions {
   /// More seed and ring cells than this skip the refinement (PolygonizeStats::refinementSkipped):
   /// each refined cell costs about 8^refineLevels field evaluations.
   std::int64_t maxRefinedCells = std::int64_t{1} << 17;
+  /// A slab of the grid for distributed extraction: contour only the cells with z index in
+  /// [slabBegin, slabEnd) (slabEnd < 0: up to the last cell). The nodes are sampled over the slab plus
+  /// slabHalo(options) cells on each side, so that the slab's triangles, vertices and refined cells are
+  /// those of the whole grid's extraction there; PolygonizeResult::vertexKeys then names every vertex,
+  /// and the slabs of one grid weld into the whole grid's meshes by weldByKeys. 0, −1: the whole grid.
+  int slabBegin = 0;
+  int slabEnd = -1;
+  /// Fill PolygonizeResult::vertexKeys (always done for a slab).
+  bool keepVertexKeys = false;
 };
+
+/// Cells sampled beyond each side of a slab (PolygonizeOptions::slabBegin): one or more whole blocks
+/// of coarseStep cells, at least 8 cells, beyond the reach of the refinement's closure.
+int slabHalo(const PolygonizeOptions& options);
 
 /// What polygonize is expected to hold for a grid, before it samples anything.
 struct PolygonizeEstimate {
@@ -157,7 +170,16 @@ struct PolygonizeStats {
 struct PolygonizeResult {
   std::vector<Mesh> meshes;
   PolygonizeStats stats;
+  /// With PolygonizeOptions::keepVertexKeys or a slab: per mesh, each vertex's key, unique to the grid edge
+  /// (or refined edge) it lies on, so equal keys in two slabs' meshes are the same vertex.
+  std::vector<std::vector<std::uint64_t>> vertexKeys;
 };
+
+/// The slab meshes of one iso value (pieces[s] with its vertex keys keys[s]) as one mesh: vertices of equal
+/// key are merged (the first piece's position is kept), in order of first appearance; faces in piece order.
+/// @throws InvalidArgument when a piece's key count differs from its vertex count or a face index is out
+///         of range.
+Mesh weldByKeys(const std::vector<const Mesh*>& pieces, const std::vector<const std::vector<std::uint64_t>*>& keys);
 
 /// Extracts the level sets {f = c} for every c in isoValues from one sampling pass.
 ///

@@ -331,7 +331,7 @@ class Extractor {
 /// Joins the chunks of one iso value, releasing them: a vertex in the plane between chunks c − 1
 /// and c (chunk c's first z) is looked up among chunk c − 1's top-plane vertices.
 Mesh merge(std::vector<ChunkMesh*>& chunks, const std::vector<int>& z0, std::int64_t planeNodes,
-           int threads, const PatchMesh& patch) {
+           int threads, const PatchMesh& patch, std::vector<std::uint64_t>* keys) {
   const std::size_t n = chunks.size();
   // The patch's vertices on unrefined grid edges are welded to the chunks' vertices of the same key.
   std::vector<std::pair<std::uint64_t, std::int32_t>> shared;
@@ -385,10 +385,12 @@ Mesh merge(std::vector<ChunkMesh*>& chunks, const std::vector<int>& z0, std::int
   Mesh mesh;
   mesh.vertices.resize(next, 3);
   mesh.faces.resize(firstTri[n] + static_cast<std::int64_t>(patch.tris.size() / 3), 3);
+  if (keys != nullptr) keys->assign(static_cast<std::size_t>(next), 0);
   for (std::size_t v = 0; v < patch.keys.size(); ++v) {
     const std::int32_t g = patchGlobal[v];
     if (g < firstPatchVertex) continue;
     for (int d = 0; d < 3; ++d) mesh.vertices(g, d) = patch.xyz[3 * v + static_cast<std::size_t>(d)];
+    if (keys != nullptr) (*keys)[static_cast<std::size_t>(g)] = patch.keys[v];
   }
   for (std::size_t f = 0; f < patch.tris.size() / 3; ++f) {
     for (int d = 0; d < 3; ++d) {
@@ -405,6 +407,7 @@ Mesh merge(std::vector<ChunkMesh*>& chunks, const std::vector<int>& z0, std::int
       const std::int32_t g = global[cc][v];
       if (g < firstNew[cc]) continue;  // owned by the previous chunk
       for (int d = 0; d < 3; ++d) mesh.vertices(g, d) = m.xyz[3 * v + static_cast<std::size_t>(d)];
+      if (keys != nullptr) (*keys)[static_cast<std::size_t>(g)] = m.keys[v];
     }
     const std::size_t tris = m.tris.size() / 3;
     for (std::size_t f = 0; f < tris; ++f) {
@@ -475,11 +478,26 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
   const int nt = 1;
 #endif
   const int nz = store.cells(2);
+  // The slab's cells (all of them without a slab) and the sampled cells around it, which are scanned
+  // for thin cells and open neighbours as the whole grid's extraction would, but not contoured.
+  const ZRange slab = slabCells(options, nz), sampled = sampledCells(options, nz);
   // Several thin chunks per thread: load balance, and per-chunk edge maps that stay in cache (the
-  // output does not depend on the split).
-  const int thickness = std::clamp((nz + 8 * nt - 1) / (8 * nt), 1, 4);
-  std::vector<int> z0;
-  for (int z = 0; z < nz; z += thickness) z0.push_back(z);
+  // output does not depend on the split). Chunks [0, coreChunks) cover the slab, the others its halo.
+  const int thickness = std::clamp((slab.end - slab.begin + 8 * nt - 1) / (8 * nt), 1, 4);
+  std::vector<int> z0, z1;
+  for (int z = slab.begin; z < slab.end; z += thickness) {
+    z0.push_back(z);
+    z1.push_back(std::min(z + thickness, slab.end));
+  }
+  const std::size_t coreChunks = z0.size();
+  for (int z = sampled.begin; z < slab.begin; z += thickness) {
+    z0.push_back(z);
+    z1.push_back(std::min(z + thickness, slab.begin));
+  }
+  for (int z = slab.end; z < sampled.end; z += thickness) {
+    z0.push_back(z);
+    z1.push_back(std::min(z + thickness, sampled.end));
+  }
   const int chunkCount = static_cast<int>(z0.size());
   std::vector<std::vector<ChunkMesh>> chunks(z0.size());
   std::vector<std::vector<Cell>> open(z0.size());
@@ -498,7 +516,7 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
       for (int c = 0; c < chunkCount; ++c) {
         try {
           const std::size_t cc = static_cast<std::size_t>(c);
-          detector.thin(z0[cc], std::min(z0[cc] + thickness, nz), thin[cc]);
+          detector.thin(z0[cc], z1[cc], thin[cc]);
         } catch (...) {
 #pragma omp critical(duplexfit_extract_error)
           if (!error) error = std::current_exception();
@@ -534,7 +552,8 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
     try {
       const std::size_t cc = static_cast<std::size_t>(c);
       chunks[cc].resize(isoValues.size());
-      extractor.run(z0[cc], std::min(z0[cc] + thickness, nz), chunks[cc], open[cc]);
+      extractor.run(z0[cc], z1[cc], chunks[cc], open[cc]);
+      if (cc >= coreChunks) chunks[cc].clear();  // a halo chunk: only its open neighbours count
     } catch (...) {
 #pragma omp critical(duplexfit_extract_error)
       if (!error) error = std::current_exception();
@@ -543,14 +562,22 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
   if (error) std::rethrow_exception(error);
 
   Extraction result;
-  for (auto& o : open) result.openCells.insert(result.openCells.end(), o.begin(), o.end());
+  // Open cells outside the sampled range are another slab's (sampled there as in the whole grid).
+  const auto takeOpen = [&](const std::vector<Cell>& cells) {
+    for (const Cell& c : cells) {
+      if (sampled.contains(c[2])) result.openCells.push_back(c);
+    }
+  };
+  for (const auto& o : open) takeOpen(o);
   if (!result.openCells.empty()) return result;  // the caller samples more and extracts again
   std::vector<PatchMesh> patches(isoValues.size());
   for (std::size_t q = 0; q < isoValues.size(); ++q) {
     if (regions[q].empty()) continue;
     const auto start = std::chrono::steady_clock::now();
+    std::vector<Cell> patchOpen;
     patches[q] = std::move(extractRefined(regions[q], store, grid, {isoValues[q]}, sampler, options.batchSize, stats,
-                                          result.openCells).front());
+                                          patchOpen, slab.begin, slab.end).front());
+    takeOpen(patchOpen);
     stats.refinedSeconds += secondsSince(start);
   }
   if (!result.openCells.empty()) return result;
@@ -558,10 +585,13 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
   const std::int64_t planeNodes =
       static_cast<std::int64_t>(store.cells(0) + 1) * (store.cells(1) + 1);
   store.release();  // the node values are no longer needed: make room for the meshes
+  const bool keys = options.keepVertexKeys || slab.begin != 0 || slab.end != nz;
+  const std::vector<int> coreZ0(z0.begin(), z0.begin() + static_cast<std::ptrdiff_t>(coreChunks));
   for (std::size_t q = 0; q < isoValues.size(); ++q) {
     std::vector<ChunkMesh*> perIso;
-    for (auto& c : chunks) perIso.push_back(&c[q]);
-    result.meshes.push_back(merge(perIso, z0, planeNodes, nt, patches[q]));
+    for (std::size_t c = 0; c < coreChunks; ++c) perIso.push_back(&chunks[c][q]);
+    if (keys) result.vertexKeys.emplace_back();
+    result.meshes.push_back(merge(perIso, coreZ0, planeNodes, nt, patches[q], keys ? &result.vertexKeys.back() : nullptr));
     patches[q] = PatchMesh();
   }
   return result;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <vector>
 
 #include "duplexfit/mesh.hpp"
@@ -14,6 +15,7 @@ namespace duplexfit::detail {
 /// Meshes, one per iso value, or (with no meshes) the unmarked cells that contoured surfaces enter.
 struct Extraction {
   std::vector<Mesh> meshes;
+  std::vector<std::vector<std::uint64_t>> vertexKeys;  ///< with options.keepVertexKeys or a slab
   std::vector<std::array<int, 3>> openCells;
 };
 
@@ -22,7 +24,8 @@ struct Extraction {
 /// (possibly repeated) instead of meshes; otherwise returns the meshes and releases the store's
 /// memory. Cells with a node layer one node thick (and options.refineCells) are contoured on a locally
 /// refined grid (refine.hpp), with their extra points evaluated through sampler; stats gets the
-/// refinement's counts. options.threads: OpenMP threads, 0 = default; the result does not depend on it.
+/// refinement's counts. With a slab (PolygonizeOptions::slabBegin/End), only its cells are contoured;
+/// the sampled cells around it are scanned for thin cells and open neighbours as the whole grid would be. options.threads: OpenMP threads, 0 = default; the result does not depend on it.
 Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vector<double>& isoValues,
                          const PolygonizeOptions& options, const FieldSampler& sampler,
                          PolygonizeStats& stats);

@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -65,6 +67,10 @@ void validateOptions(const PolygonizeOptions& o) {
   if (o.maxRefinedCells < 0) {
     throw InvalidArgument("PolygonizeOptions::maxRefinedCells must be ≥ 0, got " + std::to_string(o.maxRefinedCells));
   }
+  if (o.slabBegin < 0 || (o.slabEnd >= 0 && o.slabEnd <= o.slabBegin)) {
+    throw InvalidArgument("PolygonizeOptions: the slab [" + std::to_string(o.slabBegin) + ", " +
+                          std::to_string(o.slabEnd) + ") is empty or starts below 0");
+  }
   if (o.threads < 0) {
     throw InvalidArgument("PolygonizeOptions::threads must be ≥ 0, got " +
                           std::to_string(o.threads));
@@ -72,6 +78,14 @@ void validateOptions(const PolygonizeOptions& o) {
 }
 
 }  // namespace
+
+int slabHalo(const PolygonizeOptions& options) {
+  // The refinement of a cell depends on the thin cells within its ring (refineDilation) and on the
+  // closure, which reaches a few cells further; whole blocks keep the adaptive sampling unchanged.
+  const int t = std::max(1, options.coarseStep);
+  const int reach = std::max(8, options.refineDilation + 2 * options.refineLevels + 3);
+  return (reach + t - 1) / t * t;
+}
 
 GridSpec GridSpec::fromCellSize(const Eigen::AlignedBox3d& box, double cell) {
   if (!std::isfinite(cell) || !(cell > 0.0)) {
@@ -169,6 +183,83 @@ void checkPolygonizeMemory(const GridSpec& grid, std::size_t isoCount, const Pol
   requireMemory(options.limits, "polygonize", e.bytes(), what.str(), "use a larger --cell or a smaller --resolution");
 }
 
+Mesh weldByKeys(const std::vector<const Mesh*>& pieces, const std::vector<const std::vector<std::uint64_t>*>& keys) {
+  if (pieces.size() != keys.size()) {
+    throw InvalidArgument("weldByKeys: " + std::to_string(pieces.size()) + " meshes with " +
+                          std::to_string(keys.size()) + " key lists");
+  }
+  // (key, piece, vertex), sorted by key then by position in the input: the first of each key wins.
+  struct Entry {
+    std::uint64_t key;
+    std::uint32_t piece;
+    std::int32_t vertex;
+  };
+  std::vector<Entry> entries;
+  std::int64_t faces = 0;
+  for (std::size_t p = 0; p < pieces.size(); ++p) {
+    const Mesh& m = *pieces[p];
+    if (static_cast<Eigen::Index>(keys[p]->size()) != m.vertices.rows()) {
+      throw InvalidArgument("weldByKeys: piece " + std::to_string(p) + " has " + std::to_string(m.vertices.rows()) +
+                            " vertices and " + std::to_string(keys[p]->size()) + " keys");
+    }
+    for (Eigen::Index v = 0; v < m.vertices.rows(); ++v) {
+      entries.push_back({(*keys[p])[static_cast<std::size_t>(v)], static_cast<std::uint32_t>(p), static_cast<std::int32_t>(v)});
+    }
+    faces += m.faces.rows();
+  }
+  std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
+    return a.key != b.key ? a.key < b.key : (a.piece != b.piece ? a.piece < b.piece : a.vertex < b.vertex);
+  });
+  // Each key's first (piece, vertex) owns it; global ids in the order of first appearance.
+  std::vector<std::pair<std::uint32_t, std::int32_t>> owner(entries.size());
+  for (std::size_t i = 0; i < entries.size();) {
+    std::size_t j = i;
+    while (j < entries.size() && entries[j].key == entries[i].key) ++j;
+    for (std::size_t k = i; k < j; ++k) owner[k] = {entries[i].piece, entries[i].vertex};
+    i = j;
+  }
+  std::vector<std::vector<std::int32_t>> global(pieces.size());
+  for (std::size_t p = 0; p < pieces.size(); ++p) global[p].assign(static_cast<std::size_t>(pieces[p]->vertices.rows()), -1);
+  // Unique vertices numbered in input order: walk the pieces, giving each owner vertex the next id.
+  std::vector<std::vector<std::pair<std::uint32_t, std::int32_t>>> ownerOf(pieces.size());
+  for (std::size_t p = 0; p < pieces.size(); ++p) ownerOf[p].resize(static_cast<std::size_t>(pieces[p]->vertices.rows()));
+  for (std::size_t k = 0; k < entries.size(); ++k) ownerOf[entries[k].piece][static_cast<std::size_t>(entries[k].vertex)] = owner[k];
+  std::int64_t next = 0;
+  for (std::size_t p = 0; p < pieces.size(); ++p) {
+    for (std::size_t v = 0; v < ownerOf[p].size(); ++v) {
+      const auto [op, ov] = ownerOf[p][v];
+      if (op == p && static_cast<std::size_t>(ov) == v) global[p][v] = static_cast<std::int32_t>(next++);
+    }
+  }
+  if (next > std::numeric_limits<std::int32_t>::max()) {
+    throw InvalidArgument("weldByKeys: more than 2^31 - 1 vertices");
+  }
+  Mesh out;
+  out.vertices.resize(next, 3);
+  out.faces.resize(faces, 3);
+  std::int64_t f = 0;
+  for (std::size_t p = 0; p < pieces.size(); ++p) {
+    const Mesh& m = *pieces[p];
+    for (std::size_t v = 0; v < ownerOf[p].size(); ++v) {
+      const std::int32_t g = global[p][v];
+      if (g >= 0) out.vertices.row(g) = m.vertices.row(static_cast<Eigen::Index>(v));
+    }
+    for (Eigen::Index t = 0; t < m.faces.rows(); ++t, ++f) {
+      for (int c = 0; c < 3; ++c) {
+        const Index x = m.faces(t, c);
+        if (x < 0 || x >= m.vertices.rows()) {
+          throw InvalidArgument("weldByKeys: face " + std::to_string(t) + " of piece " + std::to_string(p) +
+                                " has vertex index " + std::to_string(x) + " outside [0, " +
+                                std::to_string(m.vertices.rows()) + ")");
+        }
+        const auto [op, ov] = ownerOf[p][static_cast<std::size_t>(x)];
+        out.faces(f, c) = global[op][static_cast<std::size_t>(ov)];
+      }
+    }
+  }
+  return out;
+}
+
 PolygonizeResult polygonize(const FieldSampler& sampler, const GridSpec& grid,
                             const std::vector<double>& isoValues, const PolygonizeOptions& options,
                             Interrupter* interrupter) {
@@ -179,6 +270,11 @@ PolygonizeResult polygonize(const FieldSampler& sampler, const GridSpec& grid,
   if (!sampler) throw InvalidArgument("polygonize: the sampler is empty");
   grid.validate();
   validateOptions(options);
+  if (options.slabEnd > grid.cells(2) || options.slabBegin >= grid.cells(2)) {
+    throw InvalidArgument("polygonize: the slab [" + std::to_string(options.slabBegin) + ", " +
+                          std::to_string(options.slabEnd) + ") is outside the grid's " +
+                          std::to_string(grid.cells(2)) + " cells along z");
+  }
   if (isoValues.empty()) throw InvalidArgument("polygonize: the list of iso values is empty");
   for (std::size_t q = 0; q < isoValues.size(); ++q) {
     if (!std::isfinite(isoValues[q])) {
@@ -210,6 +306,7 @@ PolygonizeResult polygonize(const FieldSampler& sampler, const GridSpec& grid,
     stats.extractionSeconds += since(extractStart);
     if (e.openCells.empty()) {
       result.meshes = std::move(e.meshes);
+      result.vertexKeys = std::move(e.vertexKeys);
       break;
     }
     const auto closeStart = std::chrono::steady_clock::now();

@@ -398,21 +398,49 @@ void evaluateInBatches(const FieldSampler& sampler, const std::vector<Eigen::Vec
 std::vector<PatchMesh> extractRefined(const RefinedRegion& region, const NodeStore& store,
                                       const GridSpec& grid, const std::vector<double>& isoValues,
                                       const FieldSampler& sampler, std::int64_t batchSize,
-                                      PolygonizeStats& stats, std::vector<std::array<int, 3>>& open) {
+                                      PolygonizeStats& stats, std::vector<std::array<int, 3>>& open,
+                                      int zBegin, int zEnd) {
   std::vector<PatchMesh> meshes(isoValues.size());
   if (region.empty()) return meshes;
   const std::array<std::vector<double>, 3> coords = nodeCoordinates(grid);
   const std::int32_t F = region.factor;
+  const std::int64_t planeCells = std::int64_t{store.cells(0)} * store.cells(1);
+  // The tetrahedra contoured here: those of the region's cells in [zBegin, zEnd).
+  std::vector<std::pair<std::size_t, std::size_t>> spans;
+  for (std::size_t c = 0; c < region.cells.size(); ++c) {
+    const std::int64_t k = region.cells[c] / planeCells;
+    if (k >= zBegin && k < zEnd) spans.emplace_back(region.offsets[c], region.offsets[c + 1]);
+  }
+  const auto forEachTet = [&](const auto& fn) {
+    for (const auto& [from, to] : spans) {
+      for (std::size_t t = from; t < to; ++t) fn(region.tets[t]);
+    }
+  };
   // Values of every lattice point the tetrahedra use: sampled grid nodes from the store, the rest
   // evaluated (in order of first use, so the batches are deterministic).
   std::unordered_map<std::uint64_t, float> values;
   std::vector<P3> pending;
-  for (const FineTet& t : region.tets) {
+  forEachTet([&](const FineTet& t) {
     for (const P3& p : t.x) {
       const std::uint64_t key = pack(p);
       if (values.count(key) != 0) continue;
       float v = NodeStore::kMissing;
       if (p[0] % F == 0 && p[1] % F == 0 && p[2] % F == 0) v = store.value(p[0] / F, p[1] / F, p[2] / F);
+      if (!std::isfinite(v)) pending.push_back(p);
+      values.emplace(key, v);
+    }
+  });
+  // The grid corners of the region's other cells (a slab's halo), for their open neighbours below.
+  const int nx = store.cells(0), ny = store.cells(1);
+  for (const std::int64_t id : region.cells) {
+    const std::int64_t k = id / planeCells;
+    if (k >= zBegin && k < zEnd) continue;
+    const std::array<int, 3> c = {static_cast<int>(id % nx), static_cast<int>((id / nx) % ny), static_cast<int>(k)};
+    for (int corner = 0; corner < 8; ++corner) {
+      const P3 p = {F * (c[0] + (corner & 1)), F * (c[1] + ((corner >> 1) & 1)), F * (c[2] + ((corner >> 2) & 1))};
+      const std::uint64_t key = pack(p);
+      if (values.count(key) != 0) continue;
+      const float v = store.value(p[0] / F, p[1] / F, p[2] / F);
       if (!std::isfinite(v)) pending.push_back(p);
       values.emplace(key, v);
     }
@@ -436,16 +464,15 @@ std::vector<PatchMesh> extractRefined(const RefinedRegion& region, const NodeSto
   const double minNodeDistance = 64.0 * largest * static_cast<double>(std::numeric_limits<float>::epsilon());
   for (std::size_t q = 0; q < isoValues.size(); ++q) {
     PatchBuilder builder(region, store, coords, minNodeDistance, isoValues[q], meshes[q]);
-    for (const FineTet& t : region.tets) {
+    forEachTet([&](const FineTet& t) {
       float f[4];
       for (int v = 0; v < 4; ++v) f[v] = values.at(pack(t.x[static_cast<std::size_t>(v)]));
       builder.tet(t, f);
-    }
+    });
   }
 
   // Contours that leave the region through its (unrefined) boundary faces must be continued by the
   // grid extraction on the other side.
-  const int nx = store.cells(0), ny = store.cells(1);
   std::vector<std::array<int, 3>> candidates;
   for (const std::int64_t id : region.cells) {
     const std::array<int, 3> c = {static_cast<int>(id % nx), static_cast<int>((id / nx) % ny),
@@ -453,9 +480,7 @@ std::vector<PatchMesh> extractRefined(const RefinedRegion& region, const NodeSto
     float v[8];
     for (int corner = 0; corner < 8; ++corner) {
       const P3 p = {F * (c[0] + (corner & 1)), F * (c[1] + ((corner >> 1) & 1)), F * (c[2] + ((corner >> 2) & 1))};
-      const auto it = values.find(pack(p));
-      v[corner] = it != values.end() ? it->second : store.value(c[0] + (corner & 1), c[1] + ((corner >> 1) & 1),
-                                                                c[2] + ((corner >> 2) & 1));
+      v[corner] = values.at(pack(p));
     }
     candidates.clear();
     appendOpenNeighbours(store, c, v, isoValues, candidates);

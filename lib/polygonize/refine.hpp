@@ -74,10 +74,12 @@ void evaluateInBatches(const FieldSampler& sampler, const std::vector<Eigen::Vec
 /// Contours the refined region for each iso value. Node values come from the store where sampled;
 /// the other lattice points are evaluated with sampler (in batches of batchSize; counted in
 /// stats.refinedEvaluations, samplerCalls and samplerSeconds). Appends to open the unmarked cells
-/// outside the region that a contour enters through the region's boundary.
+/// outside the region that a contour enters through the region's boundary. Only the region's cells with
+/// z index in [zBegin, zEnd) are contoured (a slab); the open neighbours are those of every region cell.
 std::vector<PatchMesh> extractRefined(const RefinedRegion& region, const NodeStore& store,
                                       const GridSpec& grid, const std::vector<double>& isoValues,
                                       const FieldSampler& sampler, std::int64_t batchSize,
-                                      PolygonizeStats& stats, std::vector<std::array<int, 3>>& open);
+                                      PolygonizeStats& stats, std::vector<std::array<int, 3>>& open,
+                                      int zBegin, int zEnd);
 
 }  // namespace duplexfit::detail

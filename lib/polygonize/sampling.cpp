@@ -133,23 +133,24 @@ class BatchSampler {
 };
 
 /// Full mode: every node, tile by tile (spatially coherent batches).
-void sampleAll(BatchSampler& batch, NodeStore& store, const ProgressReport& report,
+void sampleAll(BatchSampler& batch, NodeStore& store, const ZRange& range, const ProgressReport& report,
                double progressEnd) {
   const int t = store.tile();
-  for (int tz = 0; tz < store.tiles(2); ++tz) {
+  const int tzLo = range.begin / t, tzHi = std::min(store.tiles(2) - 1, range.end / t);
+  for (int tz = tzLo; tz <= tzHi; ++tz) {
     for (int ty = 0; ty < store.tiles(1); ++ty) {
       for (int tx = 0; tx < store.tiles(0); ++tx) {
         const int i0 = tx * t, j0 = ty * t, k0 = tz * t;
         float* data = store.ensureTile(i0, j0, k0);
         const int i1 = std::min(i0 + t - 1, store.cells(0));
         const int j1 = std::min(j0 + t - 1, store.cells(1));
-        const int k1 = std::min(k0 + t - 1, store.cells(2));
-        for (int k = k0; k <= k1; ++k) {
+        const int k1 = std::min({k0 + t - 1, store.cells(2), range.end});
+        for (int k = std::max(k0, range.begin); k <= k1; ++k) {
           for (int j = j0; j <= j1; ++j) {
             for (int i = i0; i <= i1; ++i) {
               data[store.local(i, j, k)] = NodeStore::kPending;
               batch.push(i, j, k);
-              if (i < store.cells(0) && j < store.cells(1) && k < store.cells(2)) {
+              if (i < store.cells(0) && j < store.cells(1) && k < range.end) {
                 store.markCell(i, j, k);
               }
             }
@@ -157,7 +158,7 @@ void sampleAll(BatchSampler& batch, NodeStore& store, const ProgressReport& repo
         }
       }
     }
-    if (report) report(progressEnd * (tz + 1) / store.tiles(2));
+    if (report) report(progressEnd * (tz - tzLo + 1) / (tzHi - tzLo + 1));
   }
   batch.flush();
 }
@@ -165,9 +166,9 @@ void sampleAll(BatchSampler& batch, NodeStore& store, const ProgressReport& repo
 /// Adaptive mode (see PolygonizeOptions::lipschitz for the skipping rule).
 class Refiner {
  public:
-  Refiner(const GridSpec& grid, const std::vector<double>& isos, double lipschitz, NodeStore& store,
-          BatchSampler& batch, PolygonizeStats& stats)
-      : isos_(isos), lipschitz_(lipschitz), store_(store), batch_(batch), stats_(stats) {
+  Refiner(const GridSpec& grid, const std::vector<double>& isos, double lipschitz, const ZRange& range,
+          NodeStore& store, BatchSampler& batch, PolygonizeStats& stats)
+      : isos_(isos), lipschitz_(lipschitz), range_(range), store_(store), batch_(batch), stats_(stats) {
     const Eigen::Vector3d h = grid.cellSize();
     h_ = {h(0), h(1), h(2)};
   }
@@ -176,12 +177,14 @@ class Refiner {
     const int t = store_.tile();
     int blocks[3];
     for (int a = 0; a < 3; ++a) blocks[a] = store_.coarseCount(a) - 1;
-    stats_.coarseBlocks = static_cast<std::int64_t>(blocks[0]) * blocks[1] * blocks[2];
+    // The block layers of the sampled range (all of them without a slab; a slab's range is block-aligned).
+    const int bzLo = range_.begin / t, bzHi = std::min(blocks[2], (range_.end + t - 1) / t);
+    stats_.coarseBlocks = static_cast<std::int64_t>(blocks[0]) * blocks[1] * (bzHi - bzLo);
 
     // The coarse lattice, in one pass.
     store_.allocateCoarse();
     batch_.setCoarseTarget(true);
-    for (int ck = 0; ck < store_.coarseCount(2); ++ck) {
+    for (int ck = bzLo; ck <= bzHi; ++ck) {
       for (int cj = 0; cj < store_.coarseCount(1); ++cj) {
         for (int ci = 0; ci < store_.coarseCount(0); ++ci) {
           batch_.push(store_.coarseNode(0, ci), store_.coarseNode(1, cj), store_.coarseNode(2, ck));
@@ -196,8 +199,8 @@ class Refiner {
     const int layersPerGroup =
         static_cast<int>(std::max<std::int64_t>(1, kGroupCells / layerCells));
     std::vector<Block> current, next;
-    for (int bz0 = 0; bz0 < blocks[2]; bz0 += layersPerGroup) {
-      const int bz1 = std::min(bz0 + layersPerGroup, blocks[2]);
+    for (int bz0 = bzLo; bz0 < bzHi; bz0 += layersPerGroup) {
+      const int bz1 = std::min(bz0 + layersPerGroup, bzHi);
       current.clear();
       for (int bz = bz0; bz < bz1; ++bz) {
         for (int by = 0; by < blocks[1]; ++by) {
@@ -218,7 +221,7 @@ class Refiner {
         batch_.flush();
         current.swap(next);
       }
-      if (report) report(progressEnd * bz1 / blocks[2]);
+      if (report) report(progressEnd * (bz1 - bzLo) / std::max(1, bzHi - bzLo));
     }
   }
 
@@ -413,6 +416,7 @@ class Refiner {
 
   const std::vector<double>& isos_;
   double lipschitz_;
+  ZRange range_;
   std::vector<char> oneSide_;                 ///< refineCells scratch
   std::vector<std::array<double, 8>> rho2_;  ///< refineCells scratch
   NodeStore& store_;
@@ -456,11 +460,25 @@ void sampleNodes(const FieldSampler& sampler, const GridSpec& grid,
   BatchSampler batch(sampler, grid, store, stats, options, [&] {
     if (report) report(lastFraction);
   });
+  const ZRange range = sampledCells(options, grid.cells(2));
   if (options.adaptive) {
-    Refiner(grid, isoValues, options.lipschitz, store, batch, stats).run(tracked, progressEnd);
+    Refiner(grid, isoValues, options.lipschitz, range, store, batch, stats).run(tracked, progressEnd);
   } else {
-    sampleAll(batch, store, tracked, progressEnd);
+    sampleAll(batch, store, range, tracked, progressEnd);
   }
+}
+
+ZRange slabCells(const PolygonizeOptions& options, int nz) {
+  return {options.slabBegin, options.slabEnd < 0 ? nz : options.slabEnd};
+}
+
+ZRange sampledCells(const PolygonizeOptions& options, int nz) {
+  const ZRange slab = slabCells(options, nz);
+  if (slab.begin == 0 && slab.end == nz) return slab;
+  const int t = options.coarseStep, halo = slabHalo(options);
+  const int lo = std::max(0, slab.begin - halo) / t * t;
+  const int hi = std::min(nz, (slab.end + halo + t - 1) / t * t);
+  return {lo, hi};
 }
 
 std::int64_t closeSurfaces(const FieldSampler& sampler, const GridSpec& grid,
@@ -472,8 +490,11 @@ std::int64_t closeSurfaces(const FieldSampler& sampler, const GridSpec& grid,
   });
   std::int64_t added = 0;
   std::vector<std::array<int, 3>> next;
+  const ZRange range = sampledCells(options, grid.cells(2));
   while (!cells.empty()) {
     // Mark and sample this round's cells (each once), then look across their faces.
+    cells.erase(std::remove_if(cells.begin(), cells.end(), [&range](const std::array<int, 3>& c) { return !range.contains(c[2]); }),
+                cells.end());
     std::sort(cells.begin(), cells.end());
     cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
     std::size_t kept = 0;

@@ -21,10 +21,26 @@ inline double nodeCoordinate(double lo, double hi, int n, int i) {
   return i == n ? hi : lo + static_cast<double>(i) * ((hi - lo) / static_cast<double>(n));
 }
 
+/// A range [begin, end) of cell z indices.
+struct ZRange {
+  int begin = 0;
+  int end = 0;
+  bool contains(int k) const noexcept { return k >= begin && k < end; }
+};
+
+/// The cells a slab contours (PolygonizeOptions::slabBegin/End; the whole grid without a slab), for a
+/// grid of nz cells along z.
+ZRange slabCells(const PolygonizeOptions& options, int nz);
+
+/// The cells sampled for it: the slab and slabHalo cells on each side, grown to whole blocks of
+/// coarseStep cells (so that every block is refined as in the whole grid's sampling) and clipped to the grid.
+ZRange sampledCells(const PolygonizeOptions& options, int nz);
+
 /// Called with the overall progress fraction; throws Cancelled when the user asks to stop.
 using ProgressReport = std::function<void(double fraction)>;
 
-/// Fills store (built with tile = options.coarseStep) with sampled node values and updates
+/// Fills store (built with tile = options.coarseStep) with sampled node values (of the cells in
+/// sampledCells(options, nz) only) and updates
 /// stats.evaluatedNodes, samplerCalls, coarseBlocks, refinedBlocks and samplerSeconds. Progress is
 /// reported as fractions of [0, progressEnd].
 void sampleNodes(const FieldSampler& sampler, const GridSpec& grid,
@@ -43,7 +59,8 @@ void appendOpenNeighbours(const NodeStore& store, const std::array<int, 3>& cell
 
 /// Continuation where the adaptive pass left a surface open (|∇f| exceeded the Lipschitz bound):
 /// marks and samples the given cells, then every unmarked cell the surface enters from a marked
-/// one, until every surface is closed. Returns the number of cells added.
+/// one, until every surface is closed (cells outside sampledCells(options, nz) are left: another slab's).
+/// Returns the number of cells added.
 std::int64_t closeSurfaces(const FieldSampler& sampler, const GridSpec& grid,
                            const std::vector<double>& isoValues, const PolygonizeOptions& options,
                            const ProgressReport& report, double progress, NodeStore& store,

@@ -11,8 +11,11 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <string>
+#include <tuple>
 #include <vector>
 
+#include "duplexfit/error.hpp"
 #include "duplexfit/polygonize.hpp"
 #include "polygonize/mesh_checks.hpp"
 #include "polygonize/refine.hpp"
@@ -101,9 +104,85 @@ double centreDeviation(const Mesh& m, const Field& f) {
   return worst;
 }
 
+/// The triangles of m as sorted corner positions, sorted: equal for meshes with the same triangles in
+/// any vertex and face order.
+std::vector<std::array<std::array<double, 3>, 3>> triangleSet(const Mesh& m) {
+  std::vector<std::array<std::array<double, 3>, 3>> out;
+  for (Eigen::Index i = 0; i < m.faces.rows(); ++i) {
+    std::array<std::array<double, 3>, 3> t{};
+    for (int c = 0; c < 3; ++c) {
+      for (int d = 0; d < 3; ++d) t[static_cast<std::size_t>(c)][static_cast<std::size_t>(d)] = m.vertices(m.faces(i, c), d);
+    }
+    // Rotate (keeping the orientation) so that the smallest corner comes first.
+    const auto first = std::min_element(t.begin(), t.end());
+    std::rotate(t.begin(), first, t.end());
+    out.push_back(t);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 }  // namespace
 
 TEST_SUITE("polygonize") {
+  TEST_CASE("polygonize: slabs welded by vertex key are the whole grid's meshes, refined cells included") {
+    GridSpec g;
+    g.box = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d::Constant(1.0));
+    g.cells = Eigen::Vector3i::Constant(40);
+    const double h = g.cellSize()(0);
+    // A plate about one node thick tilted across every slab (refined cells on both sides of each cut) and a
+    // ball, at two levels.
+    const Field thin = plate(Eigen::Vector3d(0.013, -0.021, 0.007), Eigen::Vector3d(0.3, 0.5, 0.81).normalized(), 0.6 * h, 0.7);
+    const Field ball = [](const Eigen::Vector3d& x) { return 0.55 - (x - Eigen::Vector3d(0.03, -0.02, 0.01)).norm(); };
+    for (const bool adaptive : {true, false}) {
+      for (const auto& [name, field, isos] : {std::tuple<const char*, Field, std::vector<double>>{"plate", thin, {0.0}},
+                                              {"ball", ball, {0.0, 0.1}}}) {
+        CAPTURE(name);
+        CAPTURE(adaptive);
+        PolygonizeOptions whole;
+        whole.adaptive = adaptive;
+        whole.refineLevels = 2;
+        whole.keepVertexKeys = true;
+        const PolygonizeResult all = polygonize(samplerOf(field), g, isos, whole);
+        REQUIRE(all.vertexKeys.size() == isos.size());
+        if (std::string(name) == "plate") CHECK(all.stats.refinedCells > 0);
+        // Cuts that are not block-aligned, and one slab thinner than the halo.
+        const std::vector<int> cuts = {0, 11, 17, 29, 40};
+        std::vector<PolygonizeResult> parts;
+        for (std::size_t s = 0; s + 1 < cuts.size(); ++s) {
+          PolygonizeOptions o = whole;
+          o.keepVertexKeys = false;
+          o.slabBegin = cuts[s];
+          o.slabEnd = cuts[s + 1];
+          parts.push_back(polygonize(samplerOf(field), g, isos, o));
+          REQUIRE(parts.back().vertexKeys.size() == isos.size());
+        }
+        for (std::size_t q = 0; q < isos.size(); ++q) {
+          CAPTURE(q);
+          std::vector<const Mesh*> pieces;
+          std::vector<const std::vector<std::uint64_t>*> keys;
+          for (const PolygonizeResult& r : parts) {
+            pieces.push_back(&r.meshes[q]);
+            keys.push_back(&r.vertexKeys[q]);
+          }
+          const Mesh welded = duplexfit::weldByKeys(pieces, keys);
+          CHECK(welded.vertices.rows() == all.meshes[q].vertices.rows());
+          CHECK(welded.faces.rows() == all.meshes[q].faces.rows());
+          CHECK(triangleSet(welded) == triangleSet(all.meshes[q]));
+          const Topology t = topology(welded);
+          CHECK(t.closedManifold());
+          CHECK(t.components == 1);
+        }
+      }
+    }
+    PolygonizeOptions bad;
+    bad.slabBegin = 10;
+    bad.slabEnd = 10;
+    CHECK_THROWS_AS(polygonize(samplerOf(ball), g, {0.0}, bad), duplexfit::InvalidArgument);
+    bad.slabEnd = 41;
+    CHECK_THROWS_AS(polygonize(samplerOf(ball), g, {0.0}, bad), duplexfit::InvalidArgument);
+  }
+
   TEST_CASE("refineCells: bisected tetrahedra tile their cells and the whole grid stays conforming") {
     const Eigen::Vector3i cells(7, 6, 5);
     const std::vector<std::array<int, 3>> seeds = {{1, 1, 1}, {4, 3, 2}, {6, 5, 4}, {0, 5, 0}};
