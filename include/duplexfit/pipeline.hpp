@@ -130,6 +130,8 @@ struct PipelineReport {
   bool touchesBoundary = false;
   /// The distributed fit's partition and per-rank figures (runDistributedPipeline only).
   std::optional<DistributedReport> distributed;
+  /// The distributed fit's extraction over the ranks (runDistributedPipeline with more than one rank).
+  std::optional<DistributedExtractionReport> distributedExtraction;
   double secondsRead = 0.0, secondsPolygonize = 0.0;
   double secondsFinish = 0.0;  ///< finishSurfaces on every mesh
   double secondsTotal = 0.0;  ///< the whole runPipeline call

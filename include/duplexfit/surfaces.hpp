@@ -2,6 +2,7 @@
 // sampled on the device over the whole enlarged box (docs/method.md §7) and polygonized in one pass.
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 #include "duplexfit/device.hpp"
@@ -57,6 +58,41 @@ struct SurfaceResult {
   int boxGrowths = 0;        ///< times the box was enlarged because a level set reached its boundary
   bool touchesBoundary = false;  ///< still reaching the boundary after the last growth (mesh open there)
 };
+
+class Communicator;
+
+/// One rank's share of a distributed extraction (extractSurfacesDistributed).
+struct SlabExtractionReport {
+  int rank = 0;
+  int slabBegin = 0, slabEnd = 0;       ///< its cells along z, [begin, end) (empty: no cells)
+  std::int64_t evaluatedNodes = 0;      ///< grid nodes it sampled (its slab and halo)
+  std::int64_t refinedCells = 0;        ///< cells it contoured on refined tetrahedra (with its halo's)
+  std::int64_t triangles = 0;           ///< of all its meshes
+  std::uint64_t bytesSent = 0;          ///< its meshes sent to rank 0
+  double seconds = 0.0;                 ///< its polygonize calls
+};
+
+/// The distributed extraction: per rank (on every rank), and rank 0's welding.
+struct DistributedExtractionReport {
+  std::vector<SlabExtractionReport> ranks;
+  double weldSeconds = 0.0;
+};
+
+/// extractSurfaces over the ranks of comm, the same grid on every rank: rank r polygonizes the cells of
+/// slab r along z (PolygonizeOptions::slabBegin; cuts at equal shares of the finest level's centres, so of
+/// the surface), rank 0 receives every slab's meshes and welds them by vertex key (weldByKeys) into the
+/// meshes extractSurfaces gives, up to the order of vertices and faces. Only rank 0's result has meshes;
+/// every rank has the grid and the summed statistics. A level set reaching the box grows it on every
+/// rank. Collective: every rank must call it.
+SurfaceResult extractSurfacesDistributed(Communicator& comm, const FieldEvaluator& evaluator, const ImplicitField& field,
+                                         const std::vector<double>& isoValues, const SurfaceOptions& options = {},
+                                         Interrupter* interrupter = nullptr,
+                                         DistributedExtractionReport* report = nullptr);
+
+/// The slab cuts of extractSurfacesDistributed: `parts` + 1 cell indices along z from 0 to grid.cells(2),
+/// non-decreasing, at equal shares of the finest level's centres (an empty slab where the cells are fewer
+/// than the parts).
+std::vector<int> slabCuts(const ImplicitField& field, const GridSpec& grid, int parts);
 
 /// Meshes of {f = iso} for every iso value, in input coordinates, outward oriented (normals toward
 /// decreasing f). @throws InvalidArgument (empty iso list, bad options), DeviceError, Cancelled.

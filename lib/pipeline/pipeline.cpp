@@ -208,7 +208,8 @@ std::vector<MeshFinishReport> finishMeshes(const Device& device, const std::vect
 
 /// After the fit: the surfaces, the self-check against `checkPoints`, clean-up and topology, the shell.
 void extractAndFinish(const Device& device, PipelineResult& result, std::shared_ptr<const FieldEvaluator> evaluator,
-                      const Points& checkPoints, const PipelineOptions& options, const Progress& progress) {
+                      const Points& checkPoints, const PipelineOptions& options, const Progress& progress,
+                      Communicator* comm = nullptr) {
   PipelineReport& report = result.report;
   const FitReport& rep = report.fit;
   const Precision precision = options.fit.precision;
@@ -221,7 +222,16 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
   surface.precision = precision;
   std::vector<SurfaceResult> extracted;
   std::vector<Mesh> meshes;
-  if (!options.separate) {
+  if (comm != nullptr && comm->size() > 1) {
+    // Every rank polygonizes a slab of the grid; rank 0 welds them and goes on alone.
+    if (!evaluator) throw InvalidArgument("distributed extraction: the fit's evaluator is missing");
+    DistributedExtractionReport slabs;
+    extracted.push_back(extractSurfacesDistributed(*comm, *evaluator, result.fields[0], isos, surface,
+                                                   progress.interrupter(), &slabs));
+    meshes = std::move(extracted.back().meshes);
+    report.distributedExtraction = std::move(slabs);
+    if (comm->rank() != 0) return;
+  } else if (!options.separate) {
     extracted.push_back(evaluator ? extractSurfaces(*evaluator, result.fields[0], isos, surface, progress.interrupter())
                                   : extractSurfaces(device, result.fields[0], isos, surface, progress.interrupter()));
     meshes = std::move(extracted.back().meshes);
@@ -754,7 +764,7 @@ PipelineResult runDistributedPipeline(const Device& device, Communicator& comm, 
   report.distributed = std::move(drep);
   result.fields.push_back(std::move(fitted.field));
   progress.end();
-  if (comm.rank() == 0) extractAndFinish(device, result, std::move(fitted.evaluator), checkPoints, options, progress);
+  extractAndFinish(device, result, std::move(fitted.evaluator), checkPoints, options, progress, &comm);
   report.secondsTotal = secondsSince(start);
   return result;
 }

@@ -425,6 +425,20 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
                        {"per_rank", ranks},
                        {"per_block", blocks}};
   }
+  if (report.distributedExtraction && !distributed.is_null()) {
+    const DistributedExtractionReport& x = *report.distributedExtraction;
+    Json slabs = Json::array();
+    for (const SlabExtractionReport& r : x.ranks) {
+      slabs.push_back(Json{{"rank", r.rank},
+                           {"slab", Json::array({r.slabBegin, r.slabEnd})},
+                           {"evaluated_nodes", r.evaluatedNodes},
+                           {"refined_cells", r.refinedCells},
+                           {"triangles", r.triangles},
+                           {"bytes_sent", r.bytesSent},
+                           {"seconds", r.seconds}});
+    }
+    distributed["extraction"] = Json{{"per_rank", slabs}, {"weld_seconds", x.weldSeconds}};
+  }
   w["distributed"] = distributed;
   Json denoise;
   if (report.denoise) {

@@ -5,9 +5,12 @@
 // Also the partition's splitters (in-process, with a communicator that plays P ranks holding every key).
 #include <doctest/doctest.h>
 
+#include <algorithm>
+#include <array>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
+#include <sstream>
 #include <string>
 
 #include "cli_runner.hpp"
@@ -15,6 +18,7 @@
 #include "duplexfit/communicator.hpp"
 #include "duplexfit/field.hpp"
 #include "duplexfit/io.hpp"
+#include "duplexfit/mesh.hpp"
 #include "duplexfit/point_set.hpp"
 #include "fit/partition.hpp"
 #include "json_report.hpp"
@@ -102,6 +106,30 @@ void checkSameTopology(const Json& rep, const Json& reference, bool euler) {
       CHECK(rep["meshes"][s]["topology"]["euler_characteristic"] == reference["meshes"][s]["topology"]["euler_characteristic"]);
     }
   }
+}
+
+// A number as text that reads back to the same double.
+std::string exactText(double x) {
+  std::ostringstream s;
+  s.precision(17);
+  s << x;
+  return s.str();
+}
+
+// The triangles of m as corner positions (each rotated to start at its smallest corner, keeping the
+// orientation), sorted: equal for meshes with the same triangles in any vertex and face order.
+std::vector<std::array<std::array<double, 3>, 3>> sortedTriangles(const Mesh& m) {
+  std::vector<std::array<std::array<double, 3>, 3>> out;
+  for (Eigen::Index i = 0; i < m.faces.rows(); ++i) {
+    std::array<std::array<double, 3>, 3> t{};
+    for (int c = 0; c < 3; ++c) {
+      for (int d = 0; d < 3; ++d) t[static_cast<std::size_t>(c)][static_cast<std::size_t>(d)] = m.vertices(m.faces(i, c), d);
+    }
+    std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
+    out.push_back(t);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
 }
 
 }  // namespace
@@ -311,6 +339,52 @@ TEST_SUITE("mpi") {
     }
     CHECK(local[2] < local[1]);
     CHECK(local[4] < local[2]);
+  }
+
+  TEST_CASE("mpirun duplexfit fit: each rank extracts a slab of the grid; welded, they are one process's meshes") {
+    DUPLEXFIT_REQUIRE_MPIRUN();
+    DUPLEXFIT_SHARED_DATA_DIR(data);
+    const fs::path dir = testing::scratchDir("mpi", "slabs");
+    const fs::path input = fs::path(data) / "clouds" / "fandisk_8k.ply";
+    // Meshes as extracted (no cleaning or projection, which may order their work by vertex index).
+    const Json rep = runFit(dir, 3, "fit " + input.string() + " --offset-rel 0.02 --resolution 96 --no-clean --no-project --quiet",
+                            "--distributed exact", "p3");
+    const Json& x = rep["distributed"]["extraction"];
+    REQUIRE(x["per_rank"].size() == 3);
+    // The slabs tile the grid's cells along z, each with triangles, its nodes and bytes.
+    int next = 0;
+    std::int64_t triangles = 0;
+    for (const Json& r : x["per_rank"]) {
+      CHECK(r["slab"][0].get<int>() == next);
+      next = r["slab"][1].get<int>();
+      CHECK(r["triangles"].get<std::int64_t>() > 0);
+      CHECK(r["evaluated_nodes"].get<std::int64_t>() > 0);
+      if (r["rank"].get<int>() > 0) CHECK(r["bytes_sent"].get<std::uint64_t>() > 0);
+      triangles += r["triangles"].get<std::int64_t>();
+      MESSAGE("rank " << r["rank"] << ": cells [" << r["slab"][0] << ", " << r["slab"][1] << "), " << r["triangles"]
+                      << " triangles, " << r["evaluated_nodes"] << " nodes, " << r["refined_cells"] << " refined cells, "
+                      << r["seconds"] << " s");
+    }
+    CHECK(next == rep["grid"]["nz"].get<int>());
+    CHECK(triangles == rep["meshes"][0]["topology"]["faces"].get<std::int64_t>() +
+                           rep["meshes"][1]["topology"]["faces"].get<std::int64_t>());
+    // One process meshing the same field on the same grid: the same triangles.
+    const std::string cell = exactText(rep["grid"]["cell"].get<double>());
+    for (const auto& [iso, name] : {std::pair<std::string, std::string>{"0", "zero"}, {"", "offset1"}}) {
+      CAPTURE(name);
+      const std::string level = iso.empty() ? exactText(rep["offsets"][0].get<double>()) : iso;
+      const fs::path one = dir / ("one_" + name + ".ply");
+      const CliRun m = testing::runCli("mesh " + (dir / "p3" / "field.dpxf").string() + " --iso " + level + " --cell " + cell +
+                                       " --no-clean --no-project --min-component " + (iso.empty() ? "0.001" : "0") +
+                                       " --quiet -o " + one.string());
+      INFO(m.err);
+      REQUIRE(m.status == 0);
+      const Mesh a = readMesh((dir / "p3" / (name + ".ply")).string()), b = readMesh(one.string());
+      CHECK(a.faces.rows() == b.faces.rows());
+      CHECK(a.vertices.rows() == b.vertices.rows());
+      CHECK(sortedTriangles(a) == sortedTriangles(b));
+      CHECK(rep["meshes"][name == "zero" ? 0 : 1]["topology"]["watertight"].get<bool>());
+    }
   }
 
   TEST_CASE("duplexfit fit --blocks N: N blocks in one process are N ranks' fit; under mpirun the ranks share them") {
