@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <exception>
 #include <limits>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -425,14 +426,28 @@ Mesh merge(std::vector<ChunkMesh*>& chunks, const std::vector<int>& z0, std::int
 /// The thin cells of one iso value whose contour is farther than tol from the level set somewhere: the
 /// centre of each contour polygon (the mean of its crossings, placed as the extraction places them) is
 /// evaluated, and |f − iso| > tol keeps the cell (f approximates a distance near its level sets).
+/// known: the cells tested before (cell id → kept), consulted and extended (null: none).
 std::vector<Cell> deviatingCells(const NodeStore& store, const GridSpec& grid, double iso, const std::vector<Cell>& thin,
-                                 const FieldSampler& sampler, double tol, std::int64_t batchSize, PolygonizeStats& stats) {
+                                 const FieldSampler& sampler, double tol, std::int64_t batchSize, PolygonizeStats& stats,
+                                 std::unordered_map<std::int64_t, bool>* known) {
   const KuhnTable& table = kuhnTable();
   const std::array<std::vector<double>, 3> coords = nodeCoordinates(grid);
+  const auto idOf = [&store](const Cell& c) {
+    return c[0] + std::int64_t{store.cells(0)} * (c[1] + std::int64_t{store.cells(1)} * c[2]);
+  };
   std::vector<Eigen::Vector3d> centres;
   std::vector<std::size_t> owner;
+  std::vector<char> keep(thin.size(), 0), tested(thin.size(), 0);
   for (std::size_t t = 0; t < thin.size(); ++t) {
     const Cell& c = thin[t];
+    if (known != nullptr) {
+      const auto it = known->find(idOf(c));
+      if (it != known->end()) {
+        keep[t] = it->second ? 1 : 0;
+        continue;
+      }
+    }
+    tested[t] = 1;
     float v[8];
     int mask = 0;
     for (int k = 0; k < 8; ++k) {
@@ -456,10 +471,14 @@ std::vector<Cell> deviatingCells(const NodeStore& store, const GridSpec& grid, d
       owner.push_back(t);
     }
   }
-  std::vector<char> keep(thin.size(), 0);
   evaluateInBatches(sampler, centres, batchSize, stats, "contour centres", [&](std::size_t i, double f) {
     if (!(std::abs(f - iso) <= tol)) keep[owner[i]] = 1;  // NaN keeps the cell too
   });
+  if (known != nullptr) {
+    for (std::size_t t = 0; t < thin.size(); ++t) {
+      if (tested[t] != 0) known->emplace(idOf(thin[t]), keep[t] != 0);
+    }
+  }
   std::vector<Cell> out;
   for (std::size_t t = 0; t < thin.size(); ++t) {
     if (keep[t] != 0) out.push_back(thin[t]);
@@ -471,7 +490,7 @@ std::vector<Cell> deviatingCells(const NodeStore& store, const GridSpec& grid, d
 
 Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vector<double>& isoValues,
                          const PolygonizeOptions& options, const FieldSampler& sampler,
-                         PolygonizeStats& stats) {
+                         PolygonizeStats& stats, RefineCache* cache) {
 #ifdef _OPENMP
   const int nt = options.threads > 0 ? options.threads : omp_get_max_threads();
 #else
@@ -504,7 +523,15 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
   std::exception_ptr error;
 
   // Where the grid is too coarse for the field (layers one node thick), a refined region per iso value.
-  std::vector<RefinedRegion> regions(isoValues.size());
+  std::vector<RefinedRegion> ownRegions;
+  if (cache != nullptr) {
+    cache->deviating.resize(isoValues.size());
+    cache->seeds.resize(isoValues.size());
+    cache->regions.resize(isoValues.size());
+  } else {
+    ownRegions.resize(isoValues.size());
+  }
+  std::vector<RefinedRegion>& regions = cache != nullptr ? cache->regions : ownRegions;
   bool refined = false;
   if (options.refineLevels > 0 && (options.refineThin || !options.refineCells.empty()) &&
       options.refineLevels <= maxRefineLevels(grid.cells)) {
@@ -533,11 +560,15 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
       stats.thinCells += static_cast<std::int64_t>(seeds[q].size());
       if (options.refineTolerance > 0.0 && !seeds[q].empty()) {
         seeds[q] = deviatingCells(store, grid, isoValues[q], seeds[q], sampler, options.refineTolerance,
-                                  options.batchSize, stats);
+                                  options.batchSize, stats, cache != nullptr ? &cache->deviating[q] : nullptr);
       }
       stats.deviatingCells += static_cast<std::int64_t>(seeds[q].size());
       seeds[q].insert(seeds[q].end(), options.refineCells.begin(), options.refineCells.end());
-      regions[q] = refineCells(grid.cells, seeds[q], options.refineLevels, options.refineDilation, options.maxRefinedCells);
+      // The previous round's region when its seeds are the same (its cells' nodes have not changed).
+      if (cache == nullptr || cache->seeds[q] != seeds[q]) {
+        regions[q] = refineCells(grid.cells, seeds[q], options.refineLevels, options.refineDilation, options.maxRefinedCells);
+        if (cache != nullptr) cache->seeds[q] = seeds[q];
+      }
       stats.refinementSkipped = stats.refinementSkipped || regions[q].skipped;
       stats.refinedCells += static_cast<std::int64_t>(regions[q].cells.size());
       stats.refinedSeeds += regions[q].seeds;

@@ -4,11 +4,13 @@
 
 #include <array>
 #include <cstdint>
+#include <unordered_map>
 #include <vector>
 
 #include "duplexfit/mesh.hpp"
 #include "duplexfit/polygonize.hpp"
 #include "node_store.hpp"
+#include "refine.hpp"
 
 namespace duplexfit::detail {
 
@@ -26,8 +28,17 @@ struct Extraction {
 /// refined grid (refine.hpp), with their extra points evaluated through sampler; stats gets the
 /// refinement's counts. With a slab (PolygonizeOptions::slabBegin/End), only its cells are contoured;
 /// the sampled cells around it are scanned for thin cells and open neighbours as the whole grid would be. options.threads: OpenMP threads, 0 = default; the result does not depend on it.
+/// What one extraction round leaves for the next (polygonize repeats the extraction after sampling the
+/// cells a surface left through): per iso value, the tolerance test of each thin cell (its 8 node values
+/// never change) and the last refined region with the seeds it was built from.
+struct RefineCache {
+  std::vector<std::unordered_map<std::int64_t, bool>> deviating;
+  std::vector<std::vector<std::array<int, 3>>> seeds;
+  std::vector<RefinedRegion> regions;
+};
+
 Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vector<double>& isoValues,
                          const PolygonizeOptions& options, const FieldSampler& sampler,
-                         PolygonizeStats& stats);
+                         PolygonizeStats& stats, RefineCache* cache = nullptr);
 
 }  // namespace duplexfit::detail

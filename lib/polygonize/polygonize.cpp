@@ -299,10 +299,11 @@ PolygonizeResult polygonize(const FieldSampler& sampler, const GridSpec& grid,
   // Extraction reports surfaces that leave the contoured cells (possible only where |∇f| exceeds
   // the Lipschitz bound); those are followed cell by cell and the extraction is repeated, so that
   // every mesh stays closed.
+  detail::RefineCache refineCache;  // what a repeated extraction reuses
   for (;;) {
     stats.storageBytes = store.bytes();
     const auto extractStart = std::chrono::steady_clock::now();
-    detail::Extraction e = detail::extractMeshes(store, grid, isoValues, options, sampler, stats);
+    detail::Extraction e = detail::extractMeshes(store, grid, isoValues, options, sampler, stats, &refineCache);
     stats.extractionSeconds += since(extractStart);
     if (e.openCells.empty()) {
       result.meshes = std::move(e.meshes);

@@ -417,6 +417,21 @@ TEST_SUITE("polygonize") {
       checkClosed(full.meshes[q], 1, 2);
       CHECK(identical(adaptive.meshes[q], full.meshes[q]));
     }
+    // The same with the brim's thin cells refined: the repeated extraction reuses the first round's
+    // tolerance tests and region (RefineCache) and still gives the full mode's meshes.
+    PolygonizeOptions refinedFull = fullMode(), refinedAdaptive;
+    refinedFull.refineLevels = refinedAdaptive.refineLevels = 2;
+    refinedFull.refineTolerance = refinedAdaptive.refineTolerance = 0.05 * h;
+    const PolygonizeResult rf = polygonize(samplerOf(steep), g, {0.0, 0.01}, refinedFull);
+    const PolygonizeResult ra = polygonize(samplerOf(steep), g, {0.0, 0.01}, refinedAdaptive);
+    CHECK(ra.stats.continuedCells > 0);
+    CHECK(ra.stats.refinedCells > 0);
+    CHECK(ra.stats.refinedCells == rf.stats.refinedCells);
+    for (std::size_t q = 0; q < 2; ++q) {
+      CAPTURE(q);
+      checkClosed(rf.meshes[q], 1, 2);
+      CHECK(identical(ra.meshes[q], rf.meshes[q]));
+    }
     // Within the bound, nothing needs to be continued.
     const PolygonizeResult gentle = polygonize(samplerOf(brim), g, {0.0});
     CHECK(gentle.stats.continuedCells == 0);
