@@ -136,6 +136,10 @@ struct LevelSetDeviation {
   double relativeMax = 0.0;  ///< max / side
   double limit = 0.0;        ///< 0.001 · side, the target of docs/method.md §7
   std::size_t aboveLimit = 0;  ///< samples farther than limit
+  /// Where the measured points (samples and local samples) lie farther than limit, at most kAboveLimitAt of
+  /// them (the pipelines' neck pass refines the grid cells there).
+  std::vector<Eigen::Vector3d> aboveLimitAt;
+  static constexpr std::size_t kAboveLimitAt = 4096;
   double seconds = 0.0;
 };
 
@@ -243,12 +247,23 @@ struct MeshFinishOptions {
   bool predictCentres = true;
 };
 
+/// The pipelines' neck pass on one mesh (SurfaceOptions::neckPassMaxFaces).
+struct NeckPassReport {
+  bool applied = false;          ///< the level set was extracted and finished again
+  bool kept = false;             ///< the new mesh replaced the first (closer to its level set, still closed)
+  std::size_t cells = 0;         ///< grid cells refined one level more
+  std::size_t facesBefore = 0, facesAfter = 0;  ///< of the first mesh and of the new one
+  double maxBefore = 0.0, maxAfter = 0.0;       ///< their deviation maxima, fractions of the side
+  double seconds = 0.0;
+};
+
 struct MeshFinishReport {
   CleanReport clean;        ///< zero when cleaning is off
   SimplifyReport simplify;  ///< applied false without a budget or bound
   ProjectReport project;    ///< applied false when projection is off
   bool deviationMeasured = false;
   LevelSetDeviation deviation;
+  NeckPassReport neckPass;  ///< set by the pipelines (applied false otherwise)
   double seconds = 0.0;
 };
 

@@ -98,6 +98,10 @@ struct PolygonizeOptions {
   int refineDilation = 1;
   /// Refined cells requested by the caller (refined like the detected ones).
   std::vector<std::array<int, 3>> refineCells;
+  /// Cells refined one level more than refineLevels (at most 3 in all), their neighbours within
+  /// refineDilation cells refineLevels times: where a feature is narrower than a quarter cell (a neck of an
+  /// offset level set), as the pipelines' neck pass asks (SurfaceOptions::neckPass). Needs refineLevels ≥ 1.
+  std::vector<std::array<int, 3>> refineDeeperCells;
   /// More seed and ring cells than this skip the refinement (PolygonizeStats::refinementSkipped):
   /// each refined cell costs about 8^refineLevels field evaluations.
   std::int64_t maxRefinedCells = std::int64_t{1} << 17;

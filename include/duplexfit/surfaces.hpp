@@ -2,6 +2,7 @@
 // sampled on the device over the whole enlarged box (docs/method.md §7) and polygonized in one pass.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -39,6 +40,13 @@ struct SurfaceOptions {
   /// small-component drop: cleaning, optional simplification, the deviation from the level set
   /// (finishSurfaces). extractSurfaces itself returns the marching-tetrahedra meshes as they are.
   MeshFinishOptions finish{};
+  /// The neck pass of the pipelines: where a finished mesh still lies farther than the deviation limit from
+  /// its level set (a neck or fin of the level set narrower than a quarter cell, which two levels of local
+  /// refinement cannot follow), that level set is extracted again with the grid cells there and around them
+  /// refined one level more (PolygonizeOptions::refineDeeperCells), finished again, and the new mesh is
+  /// kept when it is closer to the level set and still closed. It costs one more extraction and finish of
+  /// that level set, so it runs only on meshes of at most this many faces (0: never; `--no-neck-pass`).
+  std::size_t neckPassMaxFaces = 2000000;
 };
 
 /// The grid used for a field: its input bounds enlarged by the largest outward offset, 5% of the largest

@@ -3,6 +3,7 @@
 #include "duplexfit/pipeline.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <chrono>
 #include <cmath>
@@ -206,6 +207,88 @@ std::vector<MeshFinishReport> finishMeshes(const Device& device, const std::vect
   return reports;
 }
 
+/// Extractions of one level set by the neck pass, at most.
+constexpr int kNeckRounds = 2;
+/// Cells around each point beyond the limit refined one level more (a cube of 2r + 1 cells a side).
+constexpr int kNeckRadius = 2;
+
+/// SurfaceOptions::neckPassMaxFaces for one finished mesh of {f = iso} extracted on `grid`: returns true when
+/// the mesh and its report were replaced.
+bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const GridSpec& grid, double iso,
+              const SurfaceOptions& surface, double minComponent, Mesh& mesh, MeshFinishReport& finish,
+              const std::string& name, const Progress& progress) {
+  const int levels = surface.polygonize.refineLevels;
+  if (!finish.deviationMeasured || finish.deviation.aboveLimitAt.empty() || surface.neckPassMaxFaces == 0 ||
+      static_cast<std::size_t>(mesh.faces.rows()) > surface.neckPassMaxFaces || levels < 1 || levels > 2) {
+    return false;
+  }
+  const auto start = Clock::now();
+  NeckPassReport r;
+  r.applied = true;
+  r.facesBefore = static_cast<std::size_t>(mesh.faces.rows());
+  r.maxBefore = finish.deviation.relativeMax;
+  // Up to two rounds: the second adds the cells of the points the first left beyond the limit (a neck
+  // longer than the first round's cells).
+  std::vector<std::array<int, 3>> cells;
+  bool kept = false;
+  for (int round = 0; round < kNeckRounds; ++round) {
+    const LevelSetDeviation& d = finish.deviation;
+    if (!finish.deviationMeasured || d.aboveLimitAt.empty()) break;
+    // The cells of the points beyond the limit and their 26 neighbours.
+    const Eigen::Vector3d h = grid.cellSize();
+    for (const Eigen::Vector3d& p : d.aboveLimitAt) {
+      std::array<int, 3> c{};
+      for (int a = 0; a < 3; ++a) {
+        c[static_cast<std::size_t>(a)] = std::clamp(static_cast<int>(std::floor((p(a) - grid.box.min()(a)) / h(a))), 0, grid.cells(a) - 1);
+      }
+      for (int dz = -kNeckRadius; dz <= kNeckRadius; ++dz) {
+        for (int dy = -kNeckRadius; dy <= kNeckRadius; ++dy) {
+          for (int dx = -kNeckRadius; dx <= kNeckRadius; ++dx) {
+            const std::array<int, 3> n = {c[0] + dx, c[1] + dy, c[2] + dz};
+            if (n[0] >= 0 && n[1] >= 0 && n[2] >= 0 && n[0] < grid.cells(0) && n[1] < grid.cells(1) && n[2] < grid.cells(2)) {
+              cells.push_back(n);
+            }
+          }
+        }
+      }
+    }
+    std::sort(cells.begin(), cells.end());
+    cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+    PolygonizeOptions po = surface.polygonize;
+    if (po.refineTolerance == 0.0) po.refineTolerance = surface.refineTolerance * field.bounds().sizes().maxCoeff();
+    po.refineDeeperCells = cells;
+    const FieldSampler sampler = [&evaluator](const Points& queries, Eigen::VectorXd& values) {
+      values = evaluator.evaluate(queries).values;
+    };
+    PolygonizeResult extracted = polygonize(sampler, grid, {iso}, po, progress.interrupter());
+    std::vector<Mesh> one;
+    one.push_back(dropSmallComponents(extracted.meshes[0], minComponent).mesh);
+    extracted.meshes.clear();
+    FinishResult again = finishSurfaces(evaluator, field, std::move(one), {iso}, grid.cellSize().maxCoeff(),
+                                        surface.finish, progress.interrupter());
+    const MeshTopology before = analyzeTopology(mesh), after = analyzeTopology(again.meshes[0]);
+    const double was = finish.deviation.relativeMax, now = again.reports[0].deviation.relativeMax;
+    const bool better = again.reports[0].deviationMeasured && now < was &&
+                        ((after.watertight() && after.manifold()) || !(before.watertight() && before.manifold()));
+    std::ostringstream line;
+    line << std::setprecision(4) << name << ": neck pass " << round + 1 << ", " << cells.size()
+         << " cells refined one level more: deviation " << 100.0 * was << "% -> " << 100.0 * now << "% of the largest side, "
+         << mesh.faces.rows() << " -> " << again.meshes[0].faces.rows() << " triangles, " << (better ? "kept" : "not kept");
+    progress.log(line.str());
+    if (!better) break;
+    kept = true;
+    r.cells = cells.size();
+    mesh = std::move(again.meshes[0]);
+    finish = again.reports[0];
+  }
+  r.kept = kept;
+  r.facesAfter = static_cast<std::size_t>(mesh.faces.rows());
+  r.maxAfter = finish.deviation.relativeMax;
+  r.seconds = secondsSince(start);
+  finish.neckPass = r;
+  return kept;
+}
+
 /// After the fit: the surfaces, the self-check against `checkPoints`, clean-up and topology, the shell.
 void extractAndFinish(const Device& device, PipelineResult& result, std::shared_ptr<const FieldEvaluator> evaluator,
                       const Points& checkPoints, const PipelineOptions& options, const Progress& progress,
@@ -269,9 +352,29 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
 
   // Cleaning, simplification when asked, and every mesh's deviation from its level set.
   t = Clock::now();
-  const std::vector<MeshFinishReport> finished =
+  std::vector<MeshFinishReport> finished =
       finishMeshes(device, result.fields, evaluator.get(), meshes, isos, options.separate,
                    first.grid.cellSize().maxCoeff(), options.surface.finish, precision, progress);
+  // The neck pass (duplex mode: one field, one grid), then the self-check again on the meshes it replaced.
+  if (!options.separate && evaluator) {
+    bool replaced = false;
+    for (std::size_t i = 0; i < meshes.size(); ++i) {
+      const double minArea = i == 0 ? options.selfCheck.minAreaFraction
+                                    : std::max(options.selfCheck.minAreaFraction, options.selfCheck.minOffsetAreaFraction);
+      replaced = neckPass(*evaluator, result.fields[0], report.grid, isos[i], surface, minArea, meshes[i], finished[i],
+                          surfaceName(static_cast<int>(i)), progress) || replaced;
+    }
+    if (replaced) {
+      SelfCheckReport again = selfCheck(meshes, isos, checkPoints, options.selfCheck);
+      for (std::size_t i = 0; i < again.surfaces.size() && i < report.selfCheck.surfaces.size(); ++i) {
+        again.surfaces[i].dropped = report.selfCheck.surfaces[i].dropped;
+      }
+      again.minAreaFraction = report.selfCheck.minAreaFraction;
+      again.minOffsetAreaFraction = report.selfCheck.minOffsetAreaFraction;
+      again.seconds += report.selfCheck.seconds;
+      report.selfCheck = std::move(again);
+    }
+  }
   report.secondsFinish = secondsSince(t);
 
   for (std::size_t i = 0; i < meshes.size(); ++i) {
@@ -638,6 +741,7 @@ MeshPipelineResult runMeshPipeline(const Device& device, const ImplicitField& fi
   r.mesh = std::move(finished.meshes[0]);
   r.finish = finished.reports[0];
   logFinish("mesh", r.finish, progress);
+  neckPass(evaluator, field, r.extraction.grid, iso, options, minComponent, r.mesh, r.finish, "mesh", progress);
   progress.end();
   r.topology = analyzeTopology(r.mesh);
   return r;

@@ -134,6 +134,15 @@ void addFinishReport(Json& m, const MeshFinishReport& f) {
                          {"self_intersections_found", p.selfIntersectionsFound},
                          {"reverted", p.reverted},
                          {"seconds", p.seconds}};
+  const NeckPassReport& n = f.neckPass;
+  m["neck_pass"] = Json{{"applied", n.applied},
+                        {"kept", n.kept},
+                        {"cells", n.cells},
+                        {"faces_before", n.facesBefore},
+                        {"faces_after", n.facesAfter},
+                        {"max_before", n.maxBefore},
+                        {"max_after", n.maxAfter},
+                        {"seconds", n.seconds}};
   Json deviation;  // null when not measured
   if (f.deviationMeasured) {
     const LevelSetDeviation& d = f.deviation;

@@ -528,13 +528,16 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
     cache->deviating.resize(isoValues.size());
     cache->seeds.resize(isoValues.size());
     cache->regions.resize(isoValues.size());
+    cache->built.resize(isoValues.size(), 0);
   } else {
     ownRegions.resize(isoValues.size());
   }
   std::vector<RefinedRegion>& regions = cache != nullptr ? cache->regions : ownRegions;
   bool refined = false;
-  if (options.refineLevels > 0 && (options.refineThin || !options.refineCells.empty()) &&
-      options.refineLevels <= maxRefineLevels(grid.cells)) {
+  const int deepest = options.refineLevels + (options.refineDeeperCells.empty() ? 0 : 1);
+  if (options.refineLevels > 0 &&
+      (options.refineThin || !options.refineCells.empty() || !options.refineDeeperCells.empty()) &&
+      deepest <= maxRefineLevels(grid.cells)) {
     std::vector<std::vector<Cell>> seeds(isoValues.size());
     if (options.refineThin) {
       const Extractor detector(store, grid, isoValues, nullptr);
@@ -565,9 +568,13 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
       stats.deviatingCells += static_cast<std::int64_t>(seeds[q].size());
       seeds[q].insert(seeds[q].end(), options.refineCells.begin(), options.refineCells.end());
       // The previous round's region when its seeds are the same (its cells' nodes have not changed).
-      if (cache == nullptr || cache->seeds[q] != seeds[q]) {
-        regions[q] = refineCells(grid.cells, seeds[q], options.refineLevels, options.refineDilation, options.maxRefinedCells);
-        if (cache != nullptr) cache->seeds[q] = seeds[q];
+      if (cache == nullptr || cache->built[q] == 0 || cache->seeds[q] != seeds[q]) {
+        regions[q] = refineCells(grid.cells, seeds[q], options.refineLevels, options.refineDilation, options.maxRefinedCells,
+                                 options.refineDeeperCells);
+        if (cache != nullptr) {
+          cache->seeds[q] = seeds[q];
+          cache->built[q] = 1;
+        }
       }
       stats.refinementSkipped = stats.refinementSkipped || regions[q].skipped;
       stats.refinedCells += static_cast<std::int64_t>(regions[q].cells.size());

@@ -35,6 +35,7 @@ struct RefineCache {
   std::vector<std::unordered_map<std::int64_t, bool>> deviating;
   std::vector<std::vector<std::array<int, 3>>> seeds;
   std::vector<RefinedRegion> regions;
+  std::vector<char> built;  ///< regions[q] was built in an earlier round
 };
 
 Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vector<double>& isoValues,

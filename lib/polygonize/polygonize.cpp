@@ -58,6 +58,10 @@ void validateOptions(const PolygonizeOptions& o) {
   if (o.refineLevels < 0 || o.refineLevels > 3) {
     throw InvalidArgument("PolygonizeOptions::refineLevels must be 0 to 3, got " + std::to_string(o.refineLevels));
   }
+  if (!o.refineDeeperCells.empty() && (o.refineLevels < 1 || o.refineLevels > 2)) {
+    throw InvalidArgument("PolygonizeOptions::refineDeeperCells needs refineLevels 1 or 2, got " +
+                          std::to_string(o.refineLevels));
+  }
   if (o.refineDilation < 0 || o.refineDilation > 4) {
     throw InvalidArgument("PolygonizeOptions::refineDilation must be 0 to 4, got " + std::to_string(o.refineDilation));
   }

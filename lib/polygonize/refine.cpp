@@ -107,15 +107,17 @@ int maxRefineLevels(const Eigen::Vector3i& cells) {
 }
 
 RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::array<int, 3>>& seeds,
-                          int levels, int dilation, std::int64_t maxCells) {
+                          int levels, int dilation, std::int64_t maxCells,
+                          const std::vector<std::array<int, 3>>& deepSeeds) {
   RefinedRegion r;
-  if (seeds.empty() || levels <= 0) return r;
-  if (levels > maxRefineLevels(cells)) {
-    throw InvalidArgument("polygonize: refinement by " + std::to_string(levels) +
+  if ((seeds.empty() && deepSeeds.empty()) || levels <= 0) return r;
+  const int deepest = deepSeeds.empty() ? levels : levels + 1;
+  if (deepest > maxRefineLevels(cells)) {
+    throw InvalidArgument("polygonize: refinement by " + std::to_string(deepest) +
                           " levels does not fit this grid's lattice");
   }
-  r.levels = levels;
-  r.factor = std::int32_t{1} << levels;
+  r.levels = deepest;
+  r.factor = std::int32_t{1} << deepest;
   const auto id = [&cells](const std::array<int, 3>& c) {
     return c[0] + std::int64_t{cells(0)} * (c[1] + std::int64_t{cells(1)} * c[2]);
   };
@@ -148,36 +150,36 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
       while (tets[t].depth < depth) split(tets, t);
     }
   };
-  // The seeds and their rings, each cell once (a ring cell that is also a seed is a seed).
-  std::set<std::int64_t> core, ring;
-  std::map<std::int64_t, std::array<int, 3>> at;
-  for (const auto& s : seeds) {
-    if (!inGrid(s)) continue;
-    core.insert(id(s));
-    at[id(s)] = s;
-  }
-  for (const auto& s : seeds) {
-    for (int dz = -dilation; dz <= dilation; ++dz) {
-      for (int dy = -dilation; dy <= dilation; ++dy) {
-        for (int dx = -dilation; dx <= dilation; ++dx) {
-          const std::array<int, 3> c = {s[0] + dx, s[1] + dy, s[2] + dz};
-          if (!inGrid(c) || core.count(id(c)) != 0 || !ring.insert(id(c)).second) continue;
-          at[id(c)] = c;
+  // Each cell's depth: the deepest asked of it by a seed or a seed's ring (a ring cell that is also a seed
+  // is a seed).
+  std::map<std::int64_t, std::pair<std::array<int, 3>, int>> depthOf;
+  const auto want = [&](const std::array<int, 3>& c, int depth) {
+    if (!inGrid(c)) return;
+    auto [it, inserted] = depthOf.emplace(id(c), std::make_pair(c, depth));
+    if (!inserted) it->second.second = std::max(it->second.second, depth);
+  };
+  for (const auto* list : {&seeds, &deepSeeds}) {
+    const int depth = list == &seeds ? fineDepth : 3 * deepest;
+    for (const auto& s : *list) {
+      if (!inGrid(s)) continue;
+      want(s, depth);
+      for (int dz = -dilation; dz <= dilation; ++dz) {
+        for (int dy = -dilation; dy <= dilation; ++dy) {
+          for (int dx = -dilation; dx <= dilation; ++dx) want({s[0] + dx, s[1] + dy, s[2] + dz}, depth - 3);
         }
       }
     }
   }
-  r.seeds = static_cast<std::int64_t>(core.size() + ring.size());
+  r.seeds = static_cast<std::int64_t>(depthOf.size());
   if (r.seeds > maxCells) {
     r.skipped = true;
     return r;
   }
-  for (const std::int64_t c : core) refineTo(add(at[c]), fineDepth);
-  for (const std::int64_t c : ring) refineTo(add(at[c]), fineDepth - 3);
+  for (const auto& [key, cellDepth] : depthOf) refineTo(add(cellDepth.first), cellDepth.second);
   // Closure: bring in the cells that new vertices touch, bisect tetrahedra with a vertex in the
   // middle of an edge, until nothing changes. A tetrahedron can only gain such a vertex inside its
   // cell's closed box, so each pass visits the cells around the previous pass's new vertices.
-  const int maxDepth = fineDepth + 3;
+  const int maxDepth = 3 * deepest + 3;
   std::set<std::int64_t> dirty;
   for (const auto& entry : leaves) dirty.insert(entry.first);
   for (;;) {

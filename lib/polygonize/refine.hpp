@@ -51,8 +51,11 @@ int maxRefineLevels(const Eigen::Vector3i& cells);
 /// Refines the seed cells `levels` times and the other cells within `dilation` cells of them (clipped
 /// to the grid) levels − 1 times, and closes the refinement so that the tetrahedral mesh is
 /// conforming. Deterministic. With more than maxCells seed and ring cells, refines nothing (skipped).
+/// deepSeeds (may be empty) are refined levels + 1 times and their neighbours within `dilation` levels times;
+/// the region's factor is then 2^(levels + 1).
 RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::array<int, 3>>& seeds,
-                          int levels, int dilation, std::int64_t maxCells);
+                          int levels, int dilation, std::int64_t maxCells,
+                          const std::vector<std::array<int, 3>>& deepSeeds = {});
 
 /// The contour of one iso value over the refined region: vertices keyed like the grid extraction's
 /// (start node id · 8 + direction bits) when they lie on an unrefined grid edge, otherwise by

@@ -164,6 +164,9 @@ LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const M
     sum += v;
     sum2 += v * v;
     d.aboveLimit += v > d.limit ? 1 : 0;
+    if (v > d.limit && d.aboveLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
+      d.aboveLimitAt.push_back(point(ids[s]).transpose());
+    }
     if (v > d.max) {
       d.max = v;
       d.maxAt = point(ids[s]).transpose();
@@ -240,6 +243,9 @@ LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const M
       }
       const std::vector<double> le = measure(local);
       for (std::size_t i = 0; i < le.size(); ++i) {
+        if (le[i] > d.limit && d.aboveLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
+          d.aboveLimitAt.push_back(point(local[i]).transpose());
+        }
         if (le[i] > d.max) {
           d.max = le[i];
           d.maxAt = point(local[i]).transpose();

@@ -186,13 +186,27 @@ TEST_SUITE("polygonize") {
   TEST_CASE("refineCells: bisected tetrahedra tile their cells and the whole grid stays conforming") {
     const Eigen::Vector3i cells(7, 6, 5);
     const std::vector<std::array<int, 3>> seeds = {{1, 1, 1}, {4, 3, 2}, {6, 5, 4}, {0, 5, 0}};
+    // With deeper seeds (PolygonizeOptions::refineDeeperCells) too: one level more there, the same closure.
+    const std::vector<std::array<int, 3>> deep = {{2, 1, 1}, {5, 0, 4}};
     for (int levels : {1, 2}) {
       for (int dilation : {0, 1}) {
+       for (const bool deeper : {false, true}) {
         CAPTURE(levels);
         CAPTURE(dilation);
-        const RefinedRegion r = refineCells(cells, seeds, levels, dilation, 1 << 20);
+        CAPTURE(deeper);
+        const RefinedRegion r = refineCells(cells, seeds, levels, dilation, 1 << 20,
+                                            deeper ? deep : std::vector<std::array<int, 3>>{});
         REQUIRE(!r.empty());
-        CHECK(r.factor == (1 << levels));
+        CHECK(r.factor == (1 << (levels + (deeper ? 1 : 0))));
+        if (deeper) {
+          // A deep seed's tetrahedra are 8 times smaller than a seed's.
+          for (const auto& s : deep) {
+            const std::int64_t id = s[0] + std::int64_t{cells(0)} * (s[1] + std::int64_t{cells(1)} * s[2]);
+            REQUIRE(r.contains(id));
+            const std::size_t c = static_cast<std::size_t>(std::lower_bound(r.cells.begin(), r.cells.end(), id) - r.cells.begin());
+            CHECK(r.offsets[c + 1] - r.offsets[c] >= static_cast<std::size_t>(6 * r.factor * r.factor * r.factor));
+          }
+        }
         CHECK(r.cells.size() + 1 == r.offsets.size());
         CHECK(std::is_sorted(r.cells.begin(), r.cells.end()));
         const std::int64_t cellVolume6 = 6 * std::int64_t{r.factor} * r.factor * r.factor;
@@ -206,13 +220,14 @@ TEST_SUITE("polygonize") {
           }
           CHECK(volume6 == cellVolume6);  // no overlap, no gap inside the cell
         }
-        // Seeds are refined fully: tetrahedra of cells `factor` times smaller.
+        // Seeds are refined fully: tetrahedra of cells 2^levels times smaller.
+        const std::size_t seedTets = static_cast<std::size_t>(6) << (3 * levels);
         for (const auto& s : seeds) {
           const std::int64_t id = s[0] + std::int64_t{cells(0)} * (s[1] + std::int64_t{cells(1)} * s[2]);
           REQUIRE(r.contains(id));
           const std::size_t c = static_cast<std::size_t>(
               std::lower_bound(r.cells.begin(), r.cells.end(), id) - r.cells.begin());
-          CHECK(r.offsets[c + 1] - r.offsets[c] >= static_cast<std::size_t>(6 * r.factor * r.factor * r.factor));
+          CHECK(r.offsets[c + 1] - r.offsets[c] >= seedTets);
         }
         // The other cells of the grid, unrefined.
         for (int k = 0; k < cells(2); ++k) {
@@ -231,6 +246,7 @@ TEST_SUITE("polygonize") {
           if (count != expected) ++bad;
         }
         CHECK(bad == 0);
+       }
       }
     }
     // Too many cells: nothing is refined.
