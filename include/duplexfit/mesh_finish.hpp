@@ -251,7 +251,8 @@ struct MeshFinishOptions {
 struct NeckPassReport {
   bool applied = false;          ///< the level set was extracted and finished again
   bool kept = false;             ///< the new mesh replaced the first (closer to its level set, still closed)
-  std::size_t cells = 0;         ///< grid cells refined one level more
+  std::size_t cells = 0;         ///< grid cells refined one level more (or asked for, when too many)
+  bool tooManyCells = false;     ///< not applied: more cells than SurfaceOptions::neckPassMaxCells
   std::size_t facesBefore = 0, facesAfter = 0;  ///< of the first mesh and of the new one
   double maxBefore = 0.0, maxAfter = 0.0;       ///< their deviation maxima, fractions of the side
   double seconds = 0.0;

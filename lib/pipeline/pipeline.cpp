@@ -254,6 +254,18 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
     }
     std::sort(cells.begin(), cells.end());
     cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+    if (cells.size() > surface.neckPassMaxCells) {
+      std::ostringstream line;
+      line << name << ": neck pass " << round + 1 << " not run: the points beyond the limit span " << cells.size()
+           << " cells (more than " << surface.neckPassMaxCells << ": not a neck)";
+      progress.log(line.str());
+      if (round == 0) {
+        r.applied = false;
+        r.tooManyCells = true;
+        r.cells = cells.size();
+      }
+      break;
+    }
     PolygonizeOptions po = surface.polygonize;
     if (po.refineTolerance == 0.0) po.refineTolerance = surface.refineTolerance * field.bounds().sizes().maxCoeff();
     po.refineDeeperCells = cells;

@@ -138,6 +138,7 @@ void addFinishReport(Json& m, const MeshFinishReport& f) {
   m["neck_pass"] = Json{{"applied", n.applied},
                         {"kept", n.kept},
                         {"cells", n.cells},
+                        {"too_many_cells", n.tooManyCells},
                         {"faces_before", n.facesBefore},
                         {"faces_after", n.facesAfter},
                         {"max_before", n.maxBefore},
