@@ -63,7 +63,7 @@ int cmdFit(int argc, char** argv) {
   addNumber(app, "cell", o.surface.cell, "marching grid cell size");
   addInteger(app, "resolution", o.surface.resolution, "marching grid cells along the longest side");
   addMeshFinishOptions(app, o.surface.finish);
-  addRefineOptions(app, o.surface.polygonize, o.surface.refineTolerance);
+  addRefineOptions(app, o.surface);
   addMaxMemory(app, o.limits);
   app.add_option("--format", format, "mesh format: ply (default), obj, stl or 3mf (3mf: builds with lib3mf)")->type_name("FMT");
   app.add_flag("--drop-zero-normals", fit.dropZeroNormalPoints, "drop points whose normal is zero");

@@ -27,7 +27,7 @@ int cmdMesh(int argc, char** argv) {
   addNumber(app, "cell", surface.cell, "marching grid cell size");
   addInteger(app, "resolution", surface.resolution, "marching grid cells along the longest side");
   addMeshFinishOptions(app, surface.finish);
-  addRefineOptions(app, surface.polygonize, surface.refineTolerance);
+  addRefineOptions(app, surface);
   addMaxMemory(app, surface.polygonize.limits);
   addFraction(app, "min-component", minComponent,
               "drop components below F of the mesh's area (default: 0 at iso 0; 0.001 at any other level, as fit "

@@ -18,6 +18,7 @@
 #include "duplexfit/mesh_finish.hpp"
 #include "duplexfit/polygonize.hpp"
 #include "duplexfit/resources.hpp"
+#include "duplexfit/surfaces.hpp"
 #include "duplexfit/types.hpp"
 
 namespace duplexfit::cli {
@@ -210,10 +211,14 @@ inline void addMeshFinishOptions(CLI::App& app, MeshFinishOptions& o) {
       ->type_name("N");
 }
 
-/// --refine-levels N of fit and mesh (PolygonizeOptions::refineLevels), --refine-dilation N and
-/// --refine-tolerance F (SurfaceOptions::refineTolerance).
-inline void addRefineOptions(CLI::App& app, PolygonizeOptions& o, double& tolerance) {
-  addNumber(app, "refine-tolerance", tolerance,
+/// --refine-levels N of fit and mesh (PolygonizeOptions::refineLevels), --refine-dilation N,
+/// --refine-tolerance F (SurfaceOptions::refineTolerance) and --no-neck-pass (SurfaceOptions::neckPassMaxFaces).
+inline void addRefineOptions(CLI::App& app, SurfaceOptions& surface) {
+  PolygonizeOptions& o = surface.polygonize;
+  app.add_flag_callback("--no-neck-pass", [&surface] { surface.neckPassMaxFaces = 0; },
+                        "do not extract a level set again where its mesh stays farther than 0.1% of the largest side "
+                        "from it (the neck pass: the cells there refined one level more; meshes up to 2M triangles)");
+  addNumber(app, "refine-tolerance", surface.refineTolerance,
             "refine only where the grid's contour is farther than F of the largest side from the level set (default "
             "2.5e-4; 0: every cell with a layer one node thick)")
       ->check([](const std::string& v) {

@@ -352,6 +352,13 @@ TEST_SUITE("cli") {
     CHECK(jsonAt(meshReport, "/topology/watertight").get<bool>());
     CHECK(jsonAt(meshReport, "/level_set_deviation/samples").get<std::size_t>() > 0);
     CHECK(jsonAt(meshReport, "/topology/faces").get<std::size_t>() == readMesh((dir / "m.ply").string()).faces.rows());
+    // The neck pass is reported (and, with --no-neck-pass, not run).
+    CHECK(jsonAt(meshReport, "/neck_pass/applied").is_boolean());
+    const CliRun noNeck = cli("mesh " + (out / "field.dpxf").string() + " --iso 0 --no-neck-pass -o " +
+                              (dir / "m2.ply").string() + " --json --quiet");
+    REQUIRE(noNeck.status == 0);
+    CHECK(jsonAt(testing::parseJson(noNeck.out), "/neck_pass/applied") == false);
+    CHECK(jsonAt(testing::parseJson(noNeck.out), "/neck_pass/too_many_cells") == false);
     const fs::path picture = dir / "pictures" / "z.png";
     CHECK(cli("section " + (out / "field.dpxf").string() + " --plane z=0 --size 64 -o " + picture.string() + " --quiet").status == 0);
     CHECK(fs::exists(picture));
