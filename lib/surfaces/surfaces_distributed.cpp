@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstring>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "duplexfit/communicator.hpp"
@@ -170,25 +171,19 @@ SurfaceResult extractSurfacesDistributed(Communicator& comm, const FieldEvaluato
   // Statistics: sums over the ranks (times: the slowest rank's).
   PolygonizeStats& s = out.stats;
   s = r.stats;
-  std::int64_t sums[9] = {s.evaluatedNodes, s.samplerCalls, s.coarseBlocks,   s.refinedBlocks,    s.continuedCells,
-                          s.thinCells,      s.refinedCells, s.refinedTetrahedra, s.refinedEvaluations};
-  comm.allreduce(sums, 9, ReduceOp::Sum);
-  s.evaluatedNodes = sums[0];
-  s.samplerCalls = sums[1];
-  s.coarseBlocks = sums[2];
-  s.refinedBlocks = sums[3];
-  s.continuedCells = sums[4];
-  s.thinCells = sums[5];
-  s.refinedCells = sums[6];
-  s.refinedTetrahedra = sums[7];
-  s.refinedEvaluations = sums[8];
-  double times[5] = {s.samplingSeconds, s.samplerSeconds, s.extractionSeconds, s.refinedSeconds, s.totalSeconds};
-  comm.allreduce(times, 5, ReduceOp::Max);
-  s.samplingSeconds = times[0];
-  s.samplerSeconds = times[1];
-  s.extractionSeconds = times[2];
-  s.refinedSeconds = times[3];
-  s.totalSeconds = times[4];
+  const auto reduce = [&comm](auto fields, ReduceOp op) {
+    std::vector<std::remove_pointer_t<typename decltype(fields)::value_type>> v;
+    for (const auto* f : fields) v.push_back(*f);
+    comm.allreduce(v.data(), v.size(), op);
+    for (std::size_t i = 0; i < v.size(); ++i) *fields[i] = v[i];
+  };
+  reduce(std::array<std::int64_t*, 9>{&s.evaluatedNodes, &s.samplerCalls, &s.coarseBlocks, &s.refinedBlocks,
+                                      &s.continuedCells, &s.thinCells, &s.refinedCells, &s.refinedTetrahedra,
+                                      &s.refinedEvaluations},
+         ReduceOp::Sum);
+  reduce(std::array<double*, 5>{&s.samplingSeconds, &s.samplerSeconds, &s.extractionSeconds, &s.refinedSeconds,
+                                &s.totalSeconds},
+         ReduceOp::Max);
   s.totalNodes = out.grid.nodeCount();
   if (report != nullptr) {
     report->ranks = comm.allgather(std::vector<SlabExtractionReport>{mine});

@@ -22,6 +22,7 @@
 #include "duplexfit/point_set.hpp"
 #include "fit/partition.hpp"
 #include "json_report.hpp"
+#include "polygonize/mesh_checks.hpp"
 #include "shapes.hpp"
 #include "temp_dir.hpp"
 
@@ -114,22 +115,6 @@ std::string exactText(double x) {
   s.precision(17);
   s << x;
   return s.str();
-}
-
-// The triangles of m as corner positions (each rotated to start at its smallest corner, keeping the
-// orientation), sorted: equal for meshes with the same triangles in any vertex and face order.
-std::vector<std::array<std::array<double, 3>, 3>> sortedTriangles(const Mesh& m) {
-  std::vector<std::array<std::array<double, 3>, 3>> out;
-  for (Eigen::Index i = 0; i < m.faces.rows(); ++i) {
-    std::array<std::array<double, 3>, 3> t{};
-    for (int c = 0; c < 3; ++c) {
-      for (int d = 0; d < 3; ++d) t[static_cast<std::size_t>(c)][static_cast<std::size_t>(d)] = m.vertices(m.faces(i, c), d);
-    }
-    std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
-    out.push_back(t);
-  }
-  std::sort(out.begin(), out.end());
-  return out;
 }
 
 }  // namespace
@@ -382,7 +367,7 @@ TEST_SUITE("mpi") {
       const Mesh a = readMesh((dir / "p3" / (name + ".ply")).string()), b = readMesh(one.string());
       CHECK(a.faces.rows() == b.faces.rows());
       CHECK(a.vertices.rows() == b.vertices.rows());
-      CHECK(sortedTriangles(a) == sortedTriangles(b));
+      CHECK(testing::polygonize::sortedTriangles(a) == testing::polygonize::sortedTriangles(b));
       CHECK(rep["meshes"][name == "zero" ? 0 : 1]["topology"]["watertight"].get<bool>());
     }
   }

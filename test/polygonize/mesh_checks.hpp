@@ -152,4 +152,20 @@ inline bool identical(const Mesh& a, const Mesh& b) {
          a.vertices == b.vertices && a.faces == b.faces;
 }
 
+/// The triangles of m as corner positions (each rotated to start at its smallest corner, keeping the
+/// orientation), sorted: equal for meshes with the same triangles in any vertex and face order.
+inline std::vector<std::array<std::array<double, 3>, 3>> sortedTriangles(const Mesh& m) {
+  std::vector<std::array<std::array<double, 3>, 3>> out;
+  for (Eigen::Index i = 0; i < m.faces.rows(); ++i) {
+    std::array<std::array<double, 3>, 3> t{};
+    for (int c = 0; c < 3; ++c) {
+      for (int d = 0; d < 3; ++d) t[static_cast<std::size_t>(c)][static_cast<std::size_t>(d)] = m.vertices(m.faces(i, c), d);
+    }
+    std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
+    out.push_back(t);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 }  // namespace duplexfit::testing::polygonize

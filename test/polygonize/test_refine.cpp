@@ -33,6 +33,7 @@ using duplexfit::detail::FineTet;
 using duplexfit::detail::RefinedRegion;
 using duplexfit::detail::refineCells;
 using duplexfit::testing::polygonize::identical;
+using duplexfit::testing::polygonize::sortedTriangles;
 using duplexfit::testing::polygonize::topology;
 using duplexfit::testing::polygonize::Topology;
 using Field = std::function<double(const Eigen::Vector3d&)>;
@@ -104,24 +105,6 @@ double centreDeviation(const Mesh& m, const Field& f) {
   return worst;
 }
 
-/// The triangles of m as sorted corner positions, sorted: equal for meshes with the same triangles in
-/// any vertex and face order.
-std::vector<std::array<std::array<double, 3>, 3>> triangleSet(const Mesh& m) {
-  std::vector<std::array<std::array<double, 3>, 3>> out;
-  for (Eigen::Index i = 0; i < m.faces.rows(); ++i) {
-    std::array<std::array<double, 3>, 3> t{};
-    for (int c = 0; c < 3; ++c) {
-      for (int d = 0; d < 3; ++d) t[static_cast<std::size_t>(c)][static_cast<std::size_t>(d)] = m.vertices(m.faces(i, c), d);
-    }
-    // Rotate (keeping the orientation) so that the smallest corner comes first.
-    const auto first = std::min_element(t.begin(), t.end());
-    std::rotate(t.begin(), first, t.end());
-    out.push_back(t);
-  }
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
 }  // namespace
 
 TEST_SUITE("polygonize") {
@@ -168,7 +151,7 @@ TEST_SUITE("polygonize") {
           const Mesh welded = duplexfit::weldByKeys(pieces, keys);
           CHECK(welded.vertices.rows() == all.meshes[q].vertices.rows());
           CHECK(welded.faces.rows() == all.meshes[q].faces.rows());
-          CHECK(triangleSet(welded) == triangleSet(all.meshes[q]));
+          CHECK(sortedTriangles(welded) == sortedTriangles(all.meshes[q]));
           const Topology t = topology(welded);
           CHECK(t.closedManifold());
           CHECK(t.components == 1);
