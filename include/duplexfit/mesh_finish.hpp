@@ -139,6 +139,8 @@ struct LevelSetDeviation {
   /// Where the measured points (samples and local samples) lie farther than limit, at most kAboveLimitAt of
   /// them (the pipelines' neck pass refines the grid cells there).
   std::vector<Eigen::Vector3d> aboveLimitAt;
+  /// The same for the points farther than half the limit (the extent of a neck around its worst points).
+  std::vector<Eigen::Vector3d> nearLimitAt;
   static constexpr std::size_t kAboveLimitAt = 4096;
   double seconds = 0.0;
 };

@@ -234,26 +234,36 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
   for (int round = 0; round < kNeckRounds; ++round) {
     const LevelSetDeviation& d = finish.deviation;
     if (!finish.deviationMeasured || d.aboveLimitAt.empty()) break;
-    // The cells of the points beyond the limit and their 26 neighbours.
+    // The cells of the points beyond half the limit (the neck's extent, so that one round usually covers
+    // it) or, when those span too many cells, of the points beyond the limit, with the cells within
+    // kNeckRadius of them.
     const Eigen::Vector3d h = grid.cellSize();
-    for (const Eigen::Vector3d& p : d.aboveLimitAt) {
-      std::array<int, 3> c{};
-      for (int a = 0; a < 3; ++a) {
-        c[static_cast<std::size_t>(a)] = std::clamp(static_cast<int>(std::floor((p(a) - grid.box.min()(a)) / h(a))), 0, grid.cells(a) - 1);
-      }
-      for (int dz = -kNeckRadius; dz <= kNeckRadius; ++dz) {
-        for (int dy = -kNeckRadius; dy <= kNeckRadius; ++dy) {
-          for (int dx = -kNeckRadius; dx <= kNeckRadius; ++dx) {
-            const std::array<int, 3> n = {c[0] + dx, c[1] + dy, c[2] + dz};
-            if (n[0] >= 0 && n[1] >= 0 && n[2] >= 0 && n[0] < grid.cells(0) && n[1] < grid.cells(1) && n[2] < grid.cells(2)) {
-              cells.push_back(n);
+    const auto cellsAround = [&](const std::vector<Eigen::Vector3d>& points) {
+      std::vector<std::array<int, 3>> out = cells;
+      for (const Eigen::Vector3d& p : points) {
+        std::array<int, 3> c{};
+        for (int a = 0; a < 3; ++a) {
+          c[static_cast<std::size_t>(a)] =
+              std::clamp(static_cast<int>(std::floor((p(a) - grid.box.min()(a)) / h(a))), 0, grid.cells(a) - 1);
+        }
+        for (int dz = -kNeckRadius; dz <= kNeckRadius; ++dz) {
+          for (int dy = -kNeckRadius; dy <= kNeckRadius; ++dy) {
+            for (int dx = -kNeckRadius; dx <= kNeckRadius; ++dx) {
+              const std::array<int, 3> n = {c[0] + dx, c[1] + dy, c[2] + dz};
+              if (n[0] >= 0 && n[1] >= 0 && n[2] >= 0 && n[0] < grid.cells(0) && n[1] < grid.cells(1) &&
+                  n[2] < grid.cells(2)) {
+                out.push_back(n);
+              }
             }
           }
         }
       }
-    }
-    std::sort(cells.begin(), cells.end());
-    cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+      std::sort(out.begin(), out.end());
+      out.erase(std::unique(out.begin(), out.end()), out.end());
+      return out;
+    };
+    std::vector<std::array<int, 3>> wider = cellsAround(d.nearLimitAt);
+    cells = wider.size() <= surface.neckPassMaxCells ? std::move(wider) : cellsAround(d.aboveLimitAt);
     if (cells.size() > surface.neckPassMaxCells) {
       std::ostringstream line;
       line << name << ": neck pass " << round + 1 << " not run: the points beyond the limit span " << cells.size()

@@ -167,6 +167,9 @@ LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const M
     if (v > d.limit && d.aboveLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
       d.aboveLimitAt.push_back(point(ids[s]).transpose());
     }
+    if (v > 0.5 * d.limit && d.nearLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
+      d.nearLimitAt.push_back(point(ids[s]).transpose());
+    }
     if (v > d.max) {
       d.max = v;
       d.maxAt = point(ids[s]).transpose();
@@ -245,6 +248,9 @@ LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const M
       for (std::size_t i = 0; i < le.size(); ++i) {
         if (le[i] > d.limit && d.aboveLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
           d.aboveLimitAt.push_back(point(local[i]).transpose());
+        }
+        if (le[i] > 0.5 * d.limit && d.nearLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
+          d.nearLimitAt.push_back(point(local[i]).transpose());
         }
         if (le[i] > d.max) {
           d.max = le[i];
