@@ -2,6 +2,7 @@
 // sampled on the device over the whole enlarged box (docs/method.md §7) and polygonized in one pass.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -71,6 +72,19 @@ struct SurfaceResult {
   int boxGrowths = 0;        ///< times the box was enlarged because a level set reached its boundary
   bool touchesBoundary = false;  ///< still reaching the boundary after the last growth (mesh open there)
 };
+
+/// The polygonize options extractSurfaces uses for `field`: options.polygonize, with the refinement tolerance
+/// taken from options.refineTolerance (a fraction of the field's largest side) unless set there.
+PolygonizeOptions surfacePolygonizeOptions(const ImplicitField& field, const SurfaceOptions& options);
+
+/// The field's values through an evaluator, as polygonize samples them.
+FieldSampler valueSampler(const FieldEvaluator& evaluator);
+
+/// Where level-set meshes touch the grid's box, per side (x, y, z low, then high: 1 = touched), and the box
+/// grown by a tenth of its largest side on the touched sides, same cell size (extractSurfaces grows the grid
+/// so that no level set is cut open by it).
+std::array<double, 6> boundaryContacts(const std::vector<Mesh>& meshes, const GridSpec& grid);
+GridSpec grownGrid(const GridSpec& grid, const std::array<double, 6>& contacts);
 
 class Communicator;
 

@@ -276,13 +276,9 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
       }
       break;
     }
-    PolygonizeOptions po = surface.polygonize;
-    if (po.refineTolerance == 0.0) po.refineTolerance = surface.refineTolerance * field.bounds().sizes().maxCoeff();
+    PolygonizeOptions po = surfacePolygonizeOptions(field, surface);
     po.refineDeeperCells = cells;
-    const FieldSampler sampler = [&evaluator](const Points& queries, Eigen::VectorXd& values) {
-      values = evaluator.evaluate(queries).values;
-    };
-    PolygonizeResult extracted = polygonize(sampler, grid, {iso}, po, progress.interrupter());
+    PolygonizeResult extracted = polygonize(valueSampler(evaluator), grid, {iso}, po, progress.interrupter());
     std::vector<Mesh> one;
     one.push_back(dropSmallComponents(extracted.meshes[0], minComponent).mesh);
     extracted.meshes.clear();
@@ -437,7 +433,7 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
       // the zero and offset meshes'.
       if (!evaluator) evaluator = std::make_shared<FieldEvaluator>(device, result.fields[0], precision);
       const FieldEvaluator& ev = *evaluator;
-      const FieldSampler sampler = [&ev](const Points& q, Eigen::VectorXd& values) { values = ev.evaluate(q).values; };
+      const FieldSampler sampler = valueSampler(ev);
       built = drainShell(sampler, report.grid, zeroMesh, offsetMesh, so, surface.polygonize, progress.interrupter());
       warnCoarseHoles(built.report, report.grid, progress);
     } else {
@@ -817,9 +813,7 @@ ShellPipelineResult runShellPipeline(const Device& device, const ImplicitField& 
   ShellOptions so = options;
   so.minCavityFraction = offsetFraction;
   if (so.drained()) {
-    const FieldSampler sampler = [&evaluator](const Points& q, Eigen::VectorXd& values) {
-      values = evaluator.evaluate(q).values;
-    };
+    const FieldSampler sampler = valueSampler(evaluator);
     r.shell = drainShell(sampler, r.extraction.grid, zero.mesh, offset.mesh, so, surface.polygonize,
                          progress.interrupter());
     warnCoarseHoles(r.shell.report, r.extraction.grid, progress);

@@ -3,6 +3,7 @@
 #include "duplexfit/surfaces.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "duplexfit/error.hpp"
@@ -43,6 +44,42 @@ GridSpec surfaceGrid(const Eigen::AlignedBox3d& b, double sigmaM, const std::vec
   return GridSpec::fromCellSize(Eigen::AlignedBox3d(b.min() - margin, b.max() + margin), cell);
 }
 
+PolygonizeOptions surfacePolygonizeOptions(const ImplicitField& field, const SurfaceOptions& options) {
+  PolygonizeOptions o = options.polygonize;
+  if (o.refineTolerance == 0.0) o.refineTolerance = options.refineTolerance * field.bounds().sizes().maxCoeff();
+  return o;
+}
+
+FieldSampler valueSampler(const FieldEvaluator& evaluator) {
+  return [&evaluator](const Points& queries, Eigen::VectorXd& values) { values = evaluator.evaluate(queries).values; };
+}
+
+std::array<double, 6> boundaryContacts(const std::vector<Mesh>& meshes, const GridSpec& grid) {
+  const Eigen::Vector3d lo = grid.box.min(), hi = grid.box.max();
+  const double eps = 1e-9 * (hi - lo).maxCoeff();
+  std::array<double, 6> touch{};
+  for (const Mesh& m : meshes) {
+    for (Eigen::Index v = 0; v < m.vertices.rows(); ++v) {
+      for (int a = 0; a < 3; ++a) {
+        if (m.vertices(v, a) <= lo[a] + eps) touch[static_cast<std::size_t>(a)] = 1.0;
+        if (m.vertices(v, a) >= hi[a] - eps) touch[static_cast<std::size_t>(3 + a)] = 1.0;
+      }
+    }
+  }
+  return touch;
+}
+
+GridSpec grownGrid(const GridSpec& grid, const std::array<double, 6>& contacts) {
+  const Eigen::Vector3d lo = grid.box.min(), hi = grid.box.max();
+  const double step = 0.1 * (hi - lo).maxCoeff();
+  Eigen::Vector3d growLo, growHi;
+  for (int a = 0; a < 3; ++a) {
+    growLo(a) = contacts[static_cast<std::size_t>(a)] > 0.0 ? step : 0.0;
+    growHi(a) = contacts[static_cast<std::size_t>(3 + a)] > 0.0 ? step : 0.0;
+  }
+  return GridSpec::fromCellSize(Eigen::AlignedBox3d(lo - growLo, hi + growHi), grid.cellSize().maxCoeff());
+}
+
 SurfaceResult extractSurfaces(const Device& device, const ImplicitField& field, const std::vector<double>& isoValues,
                               const SurfaceOptions& options, Interrupter* interrupter) {
   if (isoValues.empty()) throw InvalidArgument("surface extraction: no iso values given");
@@ -60,38 +97,22 @@ SurfaceResult extractSurfaces(const FieldEvaluator& evaluator, const ImplicitFie
   }
   SurfaceResult out;
   out.grid = surfaceGrid(field, isoValues, options);
-  const FieldSampler sampler = [&evaluator](const Points& queries, Eigen::VectorXd& values) {
-    values = evaluator.evaluate(queries).values;
-  };
+  const FieldSampler sampler = valueSampler(evaluator);
   // A level set that reaches the grid's boundary would be cut open there: grow the box on the sides
   // it touches (same cell size) and extract again, a few times at most.
-  PolygonizeOptions polygonizeOptions = options.polygonize;
-  if (polygonizeOptions.refineTolerance == 0.0) {
-    polygonizeOptions.refineTolerance = options.refineTolerance * field.bounds().sizes().maxCoeff();
-  }
+  const PolygonizeOptions polygonizeOptions = surfacePolygonizeOptions(field, options);
   for (int attempt = 0;; ++attempt) {
     PolygonizeResult r = polygonize(sampler, out.grid, isoValues, polygonizeOptions, interrupter);
-    const Eigen::Vector3d lo = out.grid.box.min(), hi = out.grid.box.max();
-    const double eps = 1e-9 * (hi - lo).maxCoeff();
-    Eigen::Vector3d growLo = Eigen::Vector3d::Zero(), growHi = Eigen::Vector3d::Zero();
-    const double step = 0.1 * (hi - lo).maxCoeff();
-    for (const Mesh& m : r.meshes) {
-      for (Eigen::Index v = 0; v < m.vertices.rows(); ++v) {
-        for (int a = 0; a < 3; ++a) {
-          if (m.vertices(v, a) <= lo[a] + eps) growLo[a] = step;
-          if (m.vertices(v, a) >= hi[a] - eps) growHi[a] = step;
-        }
-      }
-    }
+    const std::array<double, 6> touch = boundaryContacts(r.meshes, out.grid);
+    const bool touches = std::any_of(touch.begin(), touch.end(), [](double t) { return t > 0.0; });
     out.boxGrowths = attempt;
-    if ((growLo.isZero() && growHi.isZero()) || attempt >= 3) {
+    if (!touches || attempt >= 3) {
       out.meshes = std::move(r.meshes);
       out.stats = r.stats;
-      out.touchesBoundary = !(growLo.isZero() && growHi.isZero());
+      out.touchesBoundary = touches;
       return out;
     }
-    const double cell = out.grid.cellSize().maxCoeff();
-    out.grid = GridSpec::fromCellSize(Eigen::AlignedBox3d(lo - growLo, hi + growHi), cell);
+    out.grid = grownGrid(out.grid, touch);
   }
 }
 

@@ -34,22 +34,6 @@ void take(const std::vector<unsigned char>& in, std::size_t& at, std::size_t end
   at += bytes;
 }
 
-/// The level sets' vertex/face boxes touching the grid box: per axis, low and high (1 = grow).
-std::array<double, 6> boundaryContacts(const std::vector<Mesh>& meshes, const GridSpec& grid) {
-  const Eigen::Vector3d lo = grid.box.min(), hi = grid.box.max();
-  const double eps = 1e-9 * (hi - lo).maxCoeff();
-  std::array<double, 6> touch{};
-  for (const Mesh& m : meshes) {
-    for (Eigen::Index v = 0; v < m.vertices.rows(); ++v) {
-      for (int a = 0; a < 3; ++a) {
-        if (m.vertices(v, a) <= lo[a] + eps) touch[static_cast<std::size_t>(a)] = 1.0;
-        if (m.vertices(v, a) >= hi[a] - eps) touch[static_cast<std::size_t>(3 + a)] = 1.0;
-      }
-    }
-  }
-  return touch;
-}
-
 }  // namespace
 
 std::vector<int> slabCuts(const ImplicitField& field, const GridSpec& grid, int parts) {
@@ -97,11 +81,8 @@ SurfaceResult extractSurfacesDistributed(Communicator& comm, const FieldEvaluato
   const int me = comm.rank(), ranks = comm.size();
   SurfaceResult out;
   out.grid = surfaceGrid(field, isoValues, options);
-  const FieldSampler sampler = [&evaluator](const Points& queries, Eigen::VectorXd& values) {
-    values = evaluator.evaluate(queries).values;
-  };
-  PolygonizeOptions po = options.polygonize;
-  if (po.refineTolerance == 0.0) po.refineTolerance = options.refineTolerance * field.bounds().sizes().maxCoeff();
+  const FieldSampler sampler = valueSampler(evaluator);
+  PolygonizeOptions po = surfacePolygonizeOptions(field, options);
   po.keepVertexKeys = true;
   SlabExtractionReport mine;
   mine.rank = me;
@@ -130,14 +111,7 @@ SurfaceResult extractSurfacesDistributed(Communicator& comm, const FieldEvaluato
       out.touchesBoundary = touches;
       break;
     }
-    const Eigen::Vector3d lo = out.grid.box.min(), hi = out.grid.box.max();
-    const double step = 0.1 * (hi - lo).maxCoeff();
-    Eigen::Vector3d growLo, growHi;
-    for (int a = 0; a < 3; ++a) {
-      growLo(a) = touch[static_cast<std::size_t>(a)] > 0.0 ? step : 0.0;
-      growHi(a) = touch[static_cast<std::size_t>(3 + a)] > 0.0 ? step : 0.0;
-    }
-    out.grid = GridSpec::fromCellSize(Eigen::AlignedBox3d(lo - growLo, hi + growHi), out.grid.cellSize().maxCoeff());
+    out.grid = grownGrid(out.grid, touch);
   }
   mine.evaluatedNodes = r.stats.evaluatedNodes;
   mine.refinedCells = r.stats.refinedCells;
