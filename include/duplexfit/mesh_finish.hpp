@@ -247,6 +247,10 @@ struct MeshFinishOptions {
   /// planes (on by default since 2026-12-04: every vertex and centre measured afterwards gave the same
   /// deviations on five models, docs/method.md §7; `--evaluate-centres` turns it off).
   bool predictCentres = true;
+  /// Meshes finished at once, each on its own host thread (their field evaluations take turns on the
+  /// device); 0: as many as the host has hardware threads, at most 4. Each mesh's result is the same as
+  /// when they are finished one after another; the memory of the meshes in flight adds up.
+  std::size_t concurrentMeshes = 0;
 };
 
 /// The pipelines' neck pass on one mesh (SurfaceOptions::neckPassMaxFaces).

@@ -58,6 +58,11 @@ class DeviceImpl {
   /// Enqueues a 1-D launch; global is rounded up to a multiple of local. Checked.
   void launch(cl::Kernel& kernel, std::size_t global, std::size_t local, const char* name);
 
+  /// Held around a cached kernel's argument setting, launch and result read where several host threads
+  /// share this device (the field evaluations of meshes finished at once, finishSurfaces): a cached
+  /// cl::Kernel's arguments are per kernel object, not per call.
+  std::mutex& launchMutex() { return launchMutex_; }
+
  private:
   cl::Device device_;
   DeviceInfo info_;
@@ -65,6 +70,7 @@ class DeviceImpl {
   cl::CommandQueue queue_;
   LaunchParams params_;
   std::mutex mutex_;
+  std::mutex launchMutex_;
   std::map<std::tuple<std::string, Precision, std::string>, cl::Program> programs_;
   std::map<std::tuple<std::string, Precision, std::string>, cl::Kernel> kernels_;
   cl::Buffer scratch_;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <mutex>
 #include <type_traits>
 
 #include "device/cl_check.hpp"
@@ -147,6 +148,7 @@ std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u,
         }
       } else {
         auto& impl = *e.device.impl();
+        const std::lock_guard<std::mutex> lock(impl.launchMutex());
         const cl::Buffer qb = uploadArray(e.device, q, "field query points");
         const cl::Buffer ob = detail::createBuffer(e.device, out.size() * sizeof(T), "field evaluation results");
         const bool v8 = impl.params().fieldVector && std::is_same_v<T, float>;  // float only (eval_field.cl)

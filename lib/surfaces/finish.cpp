@@ -1,9 +1,13 @@
 // The pipelines' last step on each level set's mesh: cleaning, optional simplification, and the mesh's
 // deviation from the level set, |f − iso| / |∇f| at the vertices and face centres (docs/method.md §7).
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <exception>
 #include <string>
+#include <system_error>
+#include <thread>
 #include <vector>
 
 #include "duplexfit/error.hpp"
@@ -319,18 +323,20 @@ FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField
   CleanOptions clean;
   clean.collapseLength = options.collapseFraction * cell;
   const FieldGradientSampler sampler = gradientSampler(evaluator);
+  const std::size_t n = meshes.size();
   FinishResult out;
-  for (std::size_t i = 0; i < meshes.size(); ++i) {
-    if (interrupter && interrupter->wasInterrupted(static_cast<int>(100 * i / meshes.size()))) {
-      throw Cancelled("cancelled while finishing the meshes");
-    }
+  out.meshes.resize(n);
+  out.reports.resize(n);
+  // One mesh: nothing in it depends on another mesh, so several run at once (each on its own host thread;
+  // the field evaluations take turns on the device).
+  const auto finishOne = [&](std::size_t i) {
     const auto t = std::chrono::steady_clock::now();
     MeshFinishReport rep;
     Mesh mesh = std::move(meshes[i]);
     if (mesh.faces.rows() == 0) {  // nothing extracted at this level: nothing to clean or measure
-      out.meshes.push_back(std::move(mesh));
-      out.reports.push_back(rep);
-      continue;
+      out.meshes[i] = std::move(mesh);
+      out.reports[i] = rep;
+      return;
     }
     if (options.clean) {
       CleanResult c = cleanMesh(mesh, clean);
@@ -363,9 +369,60 @@ FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField
       rep.deviationMeasured = true;
     }
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-    out.meshes.push_back(std::move(mesh));
-    out.reports.push_back(rep);
+    out.meshes[i] = std::move(mesh);
+    out.reports[i] = rep;
+  };
+  std::size_t workers = options.concurrentMeshes;
+  if (workers == 0) workers = std::clamp<std::size_t>(std::thread::hardware_concurrency(), 1, 4);
+  workers = std::min(workers, n);
+  // The meshes are taken in order by the workers; only this thread polls the interrupter (the caller's
+  // object need not be thread-safe), before it takes each of its meshes.
+  std::atomic<std::size_t> next{0};
+  std::atomic<bool> stop{false};
+  std::vector<std::exception_ptr> errors(n);
+  const auto work = [&] {
+    for (;;) {
+      const std::size_t i = next.fetch_add(1);
+      if (i >= n || stop.load()) return;
+      try {
+        finishOne(i);
+      } catch (...) {
+        errors[i] = std::current_exception();
+        stop.store(true);
+      }
+    }
+  };
+  bool cancelled = false;
+  {
+    std::vector<std::thread> helpers;
+    try {
+      for (std::size_t w = 1; w < workers; ++w) helpers.emplace_back(work);
+    } catch (const std::system_error&) {
+      // no thread to spare: the remaining meshes are finished here
+    }
+    for (;;) {
+      const std::size_t taken = next.load();
+      if (interrupter && interrupter->wasInterrupted(static_cast<int>(100 * std::min(taken, n) / n))) {
+        cancelled = true;
+        stop.store(true);
+        break;
+      }
+      if (taken >= n || stop.load()) break;
+      std::size_t expected = taken;
+      if (!next.compare_exchange_strong(expected, taken + 1)) continue;  // a helper took it first
+      try {
+        finishOne(taken);
+      } catch (...) {
+        errors[taken] = std::current_exception();
+        stop.store(true);
+      }
+    }
+    for (std::thread& h : helpers) h.join();
   }
+  for (const std::exception_ptr& e : errors) {
+    if (e) std::rethrow_exception(e);
+  }
+  if (cancelled) throw Cancelled("cancelled while finishing the meshes");
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
 }

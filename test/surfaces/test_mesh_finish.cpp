@@ -21,6 +21,7 @@
 #include "skip.hpp"
 #include "surfaces/collapse.hpp"
 #include "temp_dir.hpp"
+#include "test_device.hpp"
 
 namespace {
 
@@ -212,6 +213,52 @@ TEST_CASE("the default cell does not depend on the offsets, and the meshes stay 
     CHECK(byDefault.mean == doctest::Approx(rep.deviation.mean).epsilon(0.05));
     CHECK(byDefault.p99 == doctest::Approx(rep.deviation.p99).epsilon(0.1));
   }
+}
+
+TEST_CASE("several meshes finished at once on the OpenCL device: the same meshes and reports as one at a time") {
+  DUPLEXFIT_OPENCL_DEVICE(dev);
+  // Three Wendland bumps of two sizes: level sets that are not spheres, three meshes of a few thousand
+  // triangles each, so the workers' field evaluations interleave on the device.
+  FieldLevel coarse, fine;
+  coarse.sigma = 1.2;
+  coarse.centres = Points(2, 3);
+  coarse.centres << -0.2, 0.0, 0.0, 0.25, 0.05, -0.05;
+  coarse.weights = Eigen::Vector2d(0.8, 0.7);
+  fine.sigma = 0.35;
+  fine.centres = Points(1, 3);
+  fine.centres << 0.0, 0.3, 0.1;
+  fine.weights = Eigen::VectorXd::Constant(1, 0.3);
+  const Eigen::AlignedBox3d bounds(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d::Constant(1.0));
+  const ImplicitField field(Normalization{}, -0.5, {coarse, fine}, {}, bounds);
+  const FieldEvaluator evaluator(dev, field, Precision::Float);
+  const std::vector<double> isos = {0.0, 0.02, -0.03};
+  const SurfaceResult s = extractSurfaces(evaluator, field, isos);
+  for (const Mesh& m : s.meshes) REQUIRE(m.faces.rows() > 2000);
+  const double cell = s.grid.cellSize().maxCoeff();
+  MeshFinishOptions one, three;
+  one.concurrentMeshes = 1;
+  three.concurrentMeshes = 3;
+  const FinishResult a = finishSurfaces(evaluator, field, s.meshes, isos, cell, one);
+  const FinishResult b = finishSurfaces(evaluator, field, s.meshes, isos, cell, three);
+  REQUIRE(a.meshes.size() == 3);
+  REQUIRE(b.meshes.size() == 3);
+  for (std::size_t i = 0; i < 3; ++i) {
+    CAPTURE(i);
+    CHECK(a.meshes[i].faces == b.meshes[i].faces);
+    CHECK(a.meshes[i].vertices == b.meshes[i].vertices);
+    CHECK(a.reports[i].clean.collapses == b.reports[i].clean.collapses);
+    CHECK(a.reports[i].project.moved == b.reports[i].project.moved);
+    CHECK(a.reports[i].project.splits == b.reports[i].project.splits);
+    REQUIRE(b.reports[i].deviationMeasured);
+    CHECK(a.reports[i].deviation.max == b.reports[i].deviation.max);
+    CHECK(b.reports[i].deviation.relativeMax <= 1e-3);
+    CHECK(analyzeTopology(b.meshes[i]).watertight());
+  }
+  // Cancelled before any mesh is taken: Cancelled, whatever the workers.
+  struct Stop : Interrupter {
+    bool wasInterrupted(int) override { return true; }
+  } stop;
+  CHECK_THROWS_AS(finishSurfaces(evaluator, field, s.meshes, isos, cell, three, &stop), Cancelled);
 }
 
 TEST_CASE("simplification without meshoptimizer is a clear error") {
