@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -185,6 +186,9 @@ struct ProjectOptions {
   /// the vertices around them back to the extracted surface until there are none (at most 12 rounds, the
   /// last one moves every vertex back).
   bool undoSelfIntersections = true;
+  /// An open mesh: the ends of its boundary edges are not moved (nor are boundary edges ever split), so
+  /// that it still fits the mesh around it (the neck pass's patch, docs/method.md §7).
+  bool keepBoundary = false;
   /// The budget of that check.
   ResourceLimits limits{};
 };
@@ -261,6 +265,11 @@ struct NeckPassReport {
   bool tooManyCells = false;     ///< not applied: more cells than SurfaceOptions::neckPassMaxCells
   std::size_t facesBefore = 0, facesAfter = 0;  ///< of the first mesh and of the new one
   double maxBefore = 0.0, maxAfter = 0.0;       ///< their deviation maxima, fractions of the side
+  /// Kept by the local replacement: only the faces around the cells were replaced (by a patch extracted
+  /// and finished there, joined by a band); false: the whole level set was extracted and finished again.
+  bool local = false;
+  std::size_t removedFaces = 0, patchFaces = 0;  ///< of the local replacement (patch and band, finished)
+  std::string localRefused;  ///< why a local replacement was not kept (then the whole mesh was redone)
   double seconds = 0.0;
 };
 

@@ -8,12 +8,15 @@
 #include <chrono>
 #include <cmath>
 #include <iomanip>
+#include <iterator>
 #include <memory>
 #include <sstream>
 #include <utility>
 
 #include "duplexfit/error.hpp"
+#include "duplexfit/measure.hpp"
 #include "duplexfit/timer.hpp"
+#include "surfaces/splice.hpp"
 
 namespace duplexfit {
 
@@ -212,6 +215,190 @@ constexpr int kNeckRounds = 2;
 /// Cells around each point beyond the limit refined one level more (a cube of 2r + 1 cells a side).
 constexpr int kNeckRadius = 2;
 
+/// Cells beyond the neck pass's cells whose faces the local replacement takes from the new extraction; one
+/// more ring of the finished mesh's faces goes, and the band between fills it.
+constexpr int kSpliceInner = 4;
+constexpr int kSpliceGap = 1;
+/// Cells around each cluster of the replaced zone in the box extracted again.
+constexpr int kBoxMargin = 3;
+
+/// The neck pass's local replacement on `mesh` (see neckPass): the faces around `zoneCells` are replaced by
+/// the level set extracted with `cells` refined one level more. True when kept (mesh, finish's deviation and
+/// r's counts updated); false with `why` otherwise, nothing changed. `before`: mesh's topology. In the last
+/// round the result must be within the deviation limit (the whole extraction is the caller's last resort).
+bool localNeckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const GridSpec& grid, double iso,
+                   const SurfaceOptions& surface, double minComponent, const std::vector<std::array<int, 3>>& cells,
+                   const std::vector<std::array<int, 3>>& zoneCells, const MeshTopology& before, bool lastRound,
+                   PolygonizeOptions po, Mesh& mesh, MeshFinishReport& finish, NeckPassReport& r, std::string& why,
+                   const std::string& label, const Progress& progress) {
+  const std::vector<std::int64_t> inner = detail::dilatedCells(grid, zoneCells, kSpliceInner);
+  const std::vector<std::int64_t> outer = detail::dilatedCells(grid, zoneCells, kSpliceInner + kSpliceGap);
+  // The level set extracted again in boxes of the grid's lattice around the clusters of the zone (a box
+  // per cluster, kBoxMargin cells around it, overlapping boxes merged): the patch is taken from the inner
+  // zone, well inside each box, so the boxes' own borders do not matter.
+  const Mesh extracted = [&] {
+    const std::int64_t nx = grid.cells(0), ny = grid.cells(1);
+    const auto coords = [&](std::int64_t id) { return std::array<int, 3>{static_cast<int>(id % nx), static_cast<int>((id / nx) % ny), static_cast<int>(id / (nx * ny))}; };
+    std::vector<std::array<int, 6>> boxes;  // lo xyz, hi xyz (inclusive)
+    std::vector<char> seen(outer.size(), 0);
+    for (std::size_t start = 0; start < outer.size(); ++start) {
+      if (seen[start]) continue;
+      std::array<int, 3> c0 = coords(outer[start]);
+      std::array<int, 6> b{c0[0], c0[1], c0[2], c0[0], c0[1], c0[2]};
+      std::vector<std::size_t> stack{start};
+      seen[start] = 1;
+      while (!stack.empty()) {
+        const std::array<int, 3> c = coords(outer[stack.back()]);
+        stack.pop_back();
+        for (int a = 0; a < 3; ++a) {
+          b[static_cast<std::size_t>(a)] = std::min(b[static_cast<std::size_t>(a)], c[static_cast<std::size_t>(a)]);
+          b[static_cast<std::size_t>(3 + a)] = std::max(b[static_cast<std::size_t>(3 + a)], c[static_cast<std::size_t>(a)]);
+        }
+        for (int dz = -1; dz <= 1; ++dz) {
+          for (int dy = -1; dy <= 1; ++dy) {
+            for (int dx = -1; dx <= 1; ++dx) {
+              const std::int64_t x = c[0] + dx, y = c[1] + dy, z = c[2] + dz;
+              if (x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= grid.cells(2)) continue;
+              const auto it = std::lower_bound(outer.begin(), outer.end(), x + nx * (y + ny * z));
+              if (it == outer.end() || *it != x + nx * (y + ny * z)) continue;
+              const auto k = static_cast<std::size_t>(it - outer.begin());
+              if (!seen[k]) {
+                seen[k] = 1;
+                stack.push_back(k);
+              }
+            }
+          }
+        }
+      }
+      for (int a = 0; a < 3; ++a) {
+        b[static_cast<std::size_t>(a)] = std::max(0, b[static_cast<std::size_t>(a)] - kBoxMargin);
+        b[static_cast<std::size_t>(3 + a)] = std::min(grid.cells(a) - 1, b[static_cast<std::size_t>(3 + a)] + kBoxMargin);
+      }
+      boxes.push_back(b);
+    }
+    for (bool merged = true; merged;) {  // overlapping boxes become their bounding box
+      merged = false;
+      for (std::size_t i = 0; i < boxes.size() && !merged; ++i) {
+        for (std::size_t j = i + 1; j < boxes.size() && !merged; ++j) {
+          bool overlap = true;
+          for (int a = 0; a < 3; ++a) {
+            overlap = overlap && boxes[i][static_cast<std::size_t>(a)] <= boxes[j][static_cast<std::size_t>(3 + a)] &&
+                      boxes[j][static_cast<std::size_t>(a)] <= boxes[i][static_cast<std::size_t>(3 + a)];
+          }
+          if (!overlap) continue;
+          for (int a = 0; a < 3; ++a) {
+            boxes[i][static_cast<std::size_t>(a)] = std::min(boxes[i][static_cast<std::size_t>(a)], boxes[j][static_cast<std::size_t>(a)]);
+            boxes[i][static_cast<std::size_t>(3 + a)] = std::max(boxes[i][static_cast<std::size_t>(3 + a)], boxes[j][static_cast<std::size_t>(3 + a)]);
+          }
+          boxes.erase(boxes.begin() + static_cast<std::ptrdiff_t>(j));
+          merged = true;
+        }
+      }
+    }
+    const Eigen::Vector3d h = grid.cellSize();
+    Mesh all;
+    std::vector<Mesh> parts;
+    for (const auto& b : boxes) {
+      GridSpec sub;
+      Eigen::Vector3d lo, hi;
+      for (int a = 0; a < 3; ++a) {
+        lo(a) = grid.box.min()(a) + h(a) * b[static_cast<std::size_t>(a)];
+        hi(a) = grid.box.min()(a) + h(a) * (b[static_cast<std::size_t>(3 + a)] + 1);
+        sub.cells(a) = b[static_cast<std::size_t>(3 + a)] - b[static_cast<std::size_t>(a)] + 1;
+      }
+      sub.box = Eigen::AlignedBox3d(lo, hi);
+      PolygonizeOptions local = po;
+      local.refineDeeperCells.clear();
+      for (const auto& c : cells) {
+        bool inside = true;
+        for (int a = 0; a < 3; ++a) {
+          inside = inside && c[static_cast<std::size_t>(a)] >= b[static_cast<std::size_t>(a)] &&
+                   c[static_cast<std::size_t>(a)] <= b[static_cast<std::size_t>(3 + a)];
+        }
+        if (inside) local.refineDeeperCells.push_back({c[0] - b[0], c[1] - b[1], c[2] - b[2]});
+      }
+      parts.push_back(std::move(polygonize(valueSampler(evaluator), sub, {iso}, local, progress.interrupter()).meshes[0]));
+    }
+    Eigen::Index nv = 0, nf = 0;
+    for (const Mesh& m : parts) {
+      nv += m.vertices.rows();
+      nf += m.faces.rows();
+    }
+    all.vertices.resize(nv, 3);
+    all.faces.resize(nf, 3);
+    nv = nf = 0;
+    for (const Mesh& m : parts) {
+      all.vertices.middleRows(nv, m.vertices.rows()) = m.vertices;
+      all.faces.middleRows(nf, m.faces.rows()) = m.faces.array() + static_cast<std::int32_t>(nv);
+      nv += m.vertices.rows();
+      nf += m.faces.rows();
+    }
+    return all;
+  }();
+  const double side = field.bounds().sizes().maxCoeff(), cell = grid.cellSize().maxCoeff();
+  detail::SpliceResult sp = detail::spliceZone(mesh, extracted, grid, inner, outer,
+                                               detail::fieldGradientSampler(evaluator), iso, side,
+                                               detail::finishCleanOptions(surface.finish, cell),
+                                               detail::finishProjectOptions(surface.finish, side, cell));
+  if (!sp.ok) {
+    why = sp.why;
+    return false;
+  }
+  MeshTopology after = analyzeTopology(sp.mesh);
+  if (after.components > before.components) {  // a bubble of the patch, as the whole extraction drops them
+    DropResult dropped = dropSmallComponents(sp.mesh, minComponent);
+    if (dropped.dropped.components > 0) {
+      sp.mesh = std::move(dropped.mesh);
+      sp.newFaces.clear();  // renumbered: test every face below
+      after = analyzeTopology(sp.mesh);
+    }
+  }
+  if (!(after.watertight() && after.manifold() && after.oriented()) &&
+      (before.watertight() && before.manifold() && before.oriented())) {
+    why = "the spliced mesh is not a closed oriented 2-manifold";
+    return false;
+  }
+  CheckOptions co;
+  co.listedPairs = 0;
+  const SelfIntersections crossing = findSelfIntersections(sp.mesh, co, sp.newFaces.empty() ? nullptr : &sp.newFaces);
+  if (crossing.count > 0) {
+    why = std::to_string(crossing.count) + " intersecting triangle pairs in the patch";
+    return false;
+  }
+  // Judged where it changed, on every vertex and face centre: the faces put in against those taken out
+  // (the whole mesh's measure samples a stride, whose maximum moves with the mesh).
+  const LevelSetDeviation out = levelSetDeviation(evaluator, field, sp.removed, iso, 0);
+  const LevelSetDeviation in = levelSetDeviation(evaluator, field, sp.patch, iso, 0);
+  if (!(in.relativeMax < out.relativeMax)) {
+    std::ostringstream line;
+    line << std::setprecision(4) << "no closer where it changed: " << 100.0 * out.relativeMax << "% -> "
+         << 100.0 * in.relativeMax << "%";
+    why = line.str();
+    return false;
+  }
+  const LevelSetDeviation d = levelSetDeviation(evaluator, field, sp.mesh, iso, surface.finish.deviationSamples);
+  const double was = finish.deviation.relativeMax;
+  if (lastRound && !(d.max <= d.limit)) {
+    std::ostringstream line;
+    line << std::setprecision(4) << "in the last round still beyond the limit: " << 100.0 * d.relativeMax << "%";
+    why = line.str();
+    return false;
+  }
+  std::ostringstream line;
+  line << std::setprecision(4) << label << ", local: " << cells.size() << " cells refined one level more, "
+       << sp.removedFaces << " faces replaced by " << sp.newFaces.size() << " (" << sp.bandFaces << " in the band, "
+       << sp.loops << " loops): deviation there " << 100.0 * out.relativeMax << "% -> " << 100.0 * in.relativeMax
+       << "%, of the mesh " << 100.0 * was << "% -> " << 100.0 * d.relativeMax << "% of the largest side, kept";
+  progress.log(line.str());
+  r.removedFaces += sp.removedFaces;
+  r.patchFaces += static_cast<std::size_t>(sp.mesh.faces.rows()) + sp.removedFaces -
+                  static_cast<std::size_t>(mesh.faces.rows());
+  mesh = std::move(sp.mesh);
+  finish.deviation = d;
+  finish.deviationMeasured = true;
+  return true;
+}
+
 /// SurfaceOptions::neckPassMaxFaces for one finished mesh of {f = iso} extracted on `grid`: returns true when
 /// the mesh and its report were replaced.
 bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const GridSpec& grid, double iso,
@@ -229,8 +416,9 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
   r.maxBefore = finish.deviation.relativeMax;
   // Up to two rounds: the second adds the cells of the points the first left beyond the limit (a neck
   // longer than the first round's cells).
-  std::vector<std::array<int, 3>> cells;
+  std::vector<std::array<int, 3>> cells, replaced;  // this round's cells; those the mesh has refined already
   bool kept = false;
+  const MeshTopology first = analyzeTopology(mesh);
   for (int round = 0; round < kNeckRounds; ++round) {
     const LevelSetDeviation& d = finish.deviation;
     if (!finish.deviationMeasured || d.aboveLimitAt.empty()) break;
@@ -278,16 +466,42 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
     }
     PolygonizeOptions po = surfacePolygonizeOptions(field, surface);
     po.refineDeeperCells = cells;
+    // First the local replacement: the level set extracted in a slab around the cells only, its faces within
+    // kSpliceInner cells of them finished on their own and spliced into the mesh.
+    if (surface.localNeckPass && surface.finish.clean && surface.finish.project &&
+        surface.finish.simplify.maxTriangles == 0 && !(surface.finish.simplify.maxError > 0.0)) {
+      // The zone: the cells new in this round (the earlier rounds' are already in the mesh).
+      std::vector<std::array<int, 3>> zone;
+      std::set_difference(cells.begin(), cells.end(), replaced.begin(), replaced.end(), std::back_inserter(zone));
+      if (zone.empty()) break;
+      std::string refused;
+      if (localNeckPass(evaluator, field, grid, iso, surface, minComponent, cells, zone, first,
+                        round + 1 == kNeckRounds, po, mesh, finish, r, refused,
+                        name + ": neck pass " + std::to_string(round + 1), progress)) {
+        kept = true;
+        replaced = cells;
+        r.cells = cells.size();
+        r.local = true;
+        r.localRefused.clear();
+        continue;
+      }
+      r.localRefused = refused;
+      std::ostringstream line;
+      line << name << ": neck pass " << round + 1 << ": the local replacement was not kept (" << refused
+           << "): the whole level set again";
+      progress.log(line.str());
+      r.local = false;
+    }
     PolygonizeResult extracted = polygonize(valueSampler(evaluator), grid, {iso}, po, progress.interrupter());
     std::vector<Mesh> one;
     one.push_back(dropSmallComponents(extracted.meshes[0], minComponent).mesh);
     extracted.meshes.clear();
     FinishResult again = finishSurfaces(evaluator, field, std::move(one), {iso}, grid.cellSize().maxCoeff(),
                                         surface.finish, progress.interrupter());
-    const MeshTopology before = analyzeTopology(mesh), after = analyzeTopology(again.meshes[0]);
+    const MeshTopology after = analyzeTopology(again.meshes[0]);
     const double was = finish.deviation.relativeMax, now = again.reports[0].deviation.relativeMax;
     const bool better = again.reports[0].deviationMeasured && now < was &&
-                        ((after.watertight() && after.manifold()) || !(before.watertight() && before.manifold()));
+                        ((after.watertight() && after.manifold()) || !(first.watertight() && first.manifold()));
     std::ostringstream line;
     line << std::setprecision(4) << name << ": neck pass " << round + 1 << ", " << cells.size()
          << " cells refined one level more: deviation " << 100.0 * was << "% -> " << 100.0 * now << "% of the largest side, "
@@ -295,6 +509,7 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
     progress.log(line.str());
     if (!better) break;
     kept = true;
+    replaced = cells;
     r.cells = cells.size();
     mesh = std::move(again.meshes[0]);
     finish = again.reports[0];

@@ -143,6 +143,10 @@ void addFinishReport(Json& m, const MeshFinishReport& f) {
                         {"faces_after", n.facesAfter},
                         {"max_before", n.maxBefore},
                         {"max_after", n.maxAfter},
+                        {"local", n.local},
+                        {"removed_faces", n.removedFaces},
+                        {"patch_faces", n.patchFaces},
+                        {"local_refused", n.localRefused},
                         {"seconds", n.seconds}};
   Json deviation;  // null when not measured
   if (f.deviationMeasured) {

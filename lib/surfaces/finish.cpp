@@ -4,6 +4,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <exception>
 #include <string>
 #include <system_error>
@@ -14,6 +15,7 @@
 #include "duplexfit/measure.hpp"
 #include "duplexfit/mesh_finish.hpp"
 #include "newton.hpp"
+#include "splice.hpp"
 
 namespace duplexfit {
 
@@ -214,7 +216,8 @@ LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const M
       }
       std::vector<char> taken(static_cast<std::size_t>(all), 0);
       for (const Eigen::Index s : ids) taken[static_cast<std::size_t>(s)] = 1;
-      std::vector<char> seen(static_cast<std::size_t>(nv), 0);
+      std::vector<std::uint32_t> stamp(static_cast<std::size_t>(nv), 0);
+      std::uint32_t current = 0;
       std::vector<Eigen::Index> local;
       const auto take = [&](Eigen::Index s) {
         if (!taken[static_cast<std::size_t>(s)]) {
@@ -222,44 +225,59 @@ LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const M
           local.push_back(s);
         }
       };
-      for (const std::size_t b : bad) {
-        if (local.size() >= maxSamples) break;
-        const Eigen::Index s = ids[b];
-        std::vector<Eigen::Index> ring;
-        if (s < nv) {
-          ring.push_back(s);
-        } else {
-          for (int k = 0; k < 3; ++k) ring.push_back(mesh.faces(s - nv, k));
-        }
-        for (int r = 0; r <= kRings && !ring.empty(); ++r) {
-          std::vector<Eigen::Index> next;
-          for (const Eigen::Index v : ring) {
-            if (seen[static_cast<std::size_t>(v)]) continue;
-            seen[static_cast<std::size_t>(v)] = 1;
-            take(v);
-            for (Eigen::Index j = offset[static_cast<std::size_t>(v)]; j < offset[static_cast<std::size_t>(v) + 1]; ++j) {
-              const Eigen::Index f = vf[static_cast<std::size_t>(j)];
-              take(nv + f);
-              if (r < kRings) {
-                for (int k = 0; k < 3; ++k) next.push_back(mesh.faces(f, k));
+      // Flooded from the seeds (sample ids), kRings rings each; then again from the flooded samples that
+      // are beyond a quarter of the limit, so that the whole of a neck or fin is measured, not only the
+      // rings around the stride's samples that happened to land on it.
+      std::vector<Eigen::Index> seeds;
+      for (const std::size_t bs : bad) seeds.push_back(ids[bs]);
+      while (!seeds.empty() && local.size() < maxSamples) {
+        const std::size_t from = local.size();
+        for (const Eigen::Index s : seeds) {
+          if (local.size() >= maxSamples) break;
+          ++current;  // each seed's rings are its own (a seed inside an earlier flood still reaches past it)
+          std::vector<Eigen::Index> ring;
+          if (s < nv) {
+            ring.push_back(s);
+          } else {
+            for (int k = 0; k < 3; ++k) ring.push_back(mesh.faces(s - nv, k));
+          }
+          for (int r = 0; r <= kRings && !ring.empty(); ++r) {
+            std::vector<Eigen::Index> next;
+            for (const Eigen::Index v : ring) {
+              if (stamp[static_cast<std::size_t>(v)] == current) continue;
+              stamp[static_cast<std::size_t>(v)] = current;
+              take(v);
+              for (Eigen::Index j = offset[static_cast<std::size_t>(v)]; j < offset[static_cast<std::size_t>(v) + 1]; ++j) {
+                const Eigen::Index f = vf[static_cast<std::size_t>(j)];
+                take(nv + f);
+                if (r < kRings) {
+                  for (int k = 0; k < 3; ++k) next.push_back(mesh.faces(f, k));
+                }
               }
             }
+            ring = std::move(next);
           }
-          ring = std::move(next);
         }
-      }
-      const std::vector<double> le = measure(local);
-      for (std::size_t i = 0; i < le.size(); ++i) {
-        if (le[i] > d.limit && d.aboveLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
-          d.aboveLimitAt.push_back(point(local[i]).transpose());
+        if (local.size() > maxSamples) local.resize(maxSamples);
+        const std::vector<Eigen::Index> batch(local.begin() + static_cast<std::ptrdiff_t>(from), local.end());
+        const std::vector<double> le = measure(batch);
+        std::vector<std::pair<double, Eigen::Index>> worse;
+        for (std::size_t i = 0; i < le.size(); ++i) {
+          if (le[i] > d.limit && d.aboveLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
+            d.aboveLimitAt.push_back(point(batch[i]).transpose());
+          }
+          if (le[i] > 0.5 * d.limit && d.nearLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
+            d.nearLimitAt.push_back(point(batch[i]).transpose());
+          }
+          if (le[i] > d.max) {
+            d.max = le[i];
+            d.maxAt = point(batch[i]).transpose();
+          }
+          if (le[i] > 0.25 * d.limit) worse.emplace_back(le[i], batch[i]);
         }
-        if (le[i] > 0.5 * d.limit && d.nearLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
-          d.nearLimitAt.push_back(point(local[i]).transpose());
-        }
-        if (le[i] > d.max) {
-          d.max = le[i];
-          d.maxAt = point(local[i]).transpose();
-        }
+        std::sort(worse.begin(), worse.end(), [](const auto& x, const auto& y) { return x.first > y.first; });
+        seeds.clear();
+        for (const auto& w : worse) seeds.push_back(w.second);
       }
       d.localSamples = local.size();
     }
@@ -310,6 +328,23 @@ void addClean(CleanReport& into, const CleanReport& more) {
 
 }  // namespace
 
+FieldGradientSampler detail::fieldGradientSampler(const FieldEvaluator& evaluator) { return gradientSampler(evaluator); }
+
+CleanOptions detail::finishCleanOptions(const MeshFinishOptions& options, double cell) {
+  CleanOptions clean;
+  clean.collapseLength = options.collapseFraction * cell;
+  return clean;
+}
+
+ProjectOptions detail::finishProjectOptions(const MeshFinishOptions& options, double side, double cell) {
+  ProjectOptions po;
+  po.target = options.projectTarget * side;
+  po.maxMove = 3.0 * cell;
+  po.maxFaces = options.simplify.maxTriangles;
+  po.estimateCentres = options.predictCentres;
+  return po;
+}
+
 FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField& field, std::vector<Mesh> meshes,
                             const std::vector<double>& isoValues, double cell, const MeshFinishOptions& options,
                             Interrupter* interrupter) {
@@ -320,8 +355,7 @@ FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField
                           std::to_string(isoValues.size()) + " iso values");
   }
   if (!(cell > 0.0) || !std::isfinite(cell)) throw InvalidArgument("finishSurfaces: the cell must be positive");
-  CleanOptions clean;
-  clean.collapseLength = options.collapseFraction * cell;
+  const CleanOptions clean = detail::finishCleanOptions(options, cell);
   const FieldGradientSampler sampler = gradientSampler(evaluator);
   const std::size_t n = meshes.size();
   FinishResult out;
@@ -355,11 +389,7 @@ FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField
     }
     if (options.project) {
       const double side = field.bounds().sizes().maxCoeff();
-      ProjectOptions po;
-      po.target = options.projectTarget * side;
-      po.maxMove = 3.0 * cell;
-      po.maxFaces = options.simplify.maxTriangles;
-      po.estimateCentres = options.predictCentres;
+      const ProjectOptions po = detail::finishProjectOptions(options, side, cell);
       ProjectResult p = projectToLevelSet(sampler, mesh, isoValues[i], side, po);
       mesh = std::move(p.mesh);
       rep.project = p.report;

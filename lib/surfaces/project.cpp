@@ -225,8 +225,21 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
     }
   };
 
-  std::vector<Index> candidates(nv);
-  for (std::size_t i = 0; i < nv; ++i) candidates[i] = static_cast<Index>(i);
+  std::vector<Index> candidates;
+  candidates.reserve(nv);
+  std::vector<char> onBoundary(nv, 0);
+  if (o.keepBoundary) {
+    for (std::size_t i = 0; i < nf; ++i) {
+      const Tri& t = w.f[i];
+      for (int k = 0; k < 3; ++k) {
+        const Index a = t[static_cast<std::size_t>(k)], b = t[static_cast<std::size_t>((k + 1) % 3)];
+        if (a != b && w.edgeFace(b, a) < 0) onBoundary[static_cast<std::size_t>(a)] = onBoundary[static_cast<std::size_t>(b)] = 1;
+      }
+    }
+  }
+  for (std::size_t i = 0; i < nv; ++i) {
+    if (!onBoundary[i]) candidates.push_back(static_cast<Index>(i));
+  }
   std::vector<Index> measure(nf);
   for (std::size_t i = 0; i < nf; ++i) measure[i] = static_cast<Index>(i);
   std::vector<int> touched(nf, -1);  // the round that last split the face
@@ -327,14 +340,16 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
       int best = 0;
       double bestLength = -1.0;
       for (int k = 0; k < 3; ++k) {
-        const double l = (w.v[static_cast<std::size_t>(t[static_cast<std::size_t>((k + 1) % 3)])] -
-                          w.v[static_cast<std::size_t>(t[static_cast<std::size_t>(k)])])
-                             .squaredNorm();
+        const Index from = t[static_cast<std::size_t>(k)], to = t[static_cast<std::size_t>((k + 1) % 3)];
+        // With keepBoundary a boundary edge is never split: the longest of the others is.
+        if (o.keepBoundary && w.edgeFace(to, from) < 0) continue;
+        const double l = (w.v[static_cast<std::size_t>(to)] - w.v[static_cast<std::size_t>(from)]).squaredNorm();
         if (l > bestLength) {
           bestLength = l;
           best = k;
         }
       }
+      if (bestLength < 0.0) continue;
       const Index a = t[static_cast<std::size_t>(best)], b = t[static_cast<std::size_t>((best + 1) % 3)],
                   c = t[static_cast<std::size_t>((best + 2) % 3)];
       const Index other = w.edgeFace(b, a);

@@ -44,6 +44,10 @@ TEST_SUITE("fit") {
     CHECK(neck.cells > 0);
     CHECK(neck.maxBefore > 1e-3);
     CHECK(neck.maxAfter <= 1e-3);
+    // Its first round replaced only the faces around the neck (the local replacement; the second round,
+    // whose zone's boundary loops do not pair up, extracted the whole level set again).
+    CHECK(neck.removedFaces > 0);
+    CHECK(neck.patchFaces > 0);
     // The same level set without the pass: beyond 0.1% (what the pass is for).
     SurfaceOptions without = o.surface;
     without.neckPassMaxFaces = 0;

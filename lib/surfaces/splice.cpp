@@ -1,0 +1,439 @@
+// The neck pass's local replacement of a zone of a finished mesh (splice.hpp).
+#include "splice.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <unordered_map>
+#include <unordered_set>
+#include <utility>
+
+namespace duplexfit::detail {
+
+namespace {
+
+using Vec = Eigen::Vector3d;
+
+/// Zip steps ((n + 1)(m + 1) for loops of n and m vertices) at most: 16M, 128 MB of dynamic programming.
+constexpr std::size_t kMaxZipSteps = std::size_t{1} << 24;
+
+std::uint64_t edgeKey(Index a, Index b) {
+  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
+}
+
+/// The linear id of the grid cell holding p (clamped to the grid).
+std::int64_t cellId(const GridSpec& grid, const Vec& p) {
+  const Vec h = grid.cellSize();
+  std::int64_t c[3];
+  for (int a = 0; a < 3; ++a) {
+    const double x = std::floor((p(a) - grid.box.min()(a)) / h(a));
+    c[a] = std::clamp<std::int64_t>(std::isfinite(x) ? static_cast<std::int64_t>(x) : 0, 0, grid.cells(a) - 1);
+  }
+  return c[0] + std::int64_t{grid.cells(0)} * (c[1] + std::int64_t{grid.cells(1)} * c[2]);
+}
+
+Vec centroid(const Mesh& m, Eigen::Index f) {
+  return (m.vertices.row(m.faces(f, 0)) + m.vertices.row(m.faces(f, 1)) + m.vertices.row(m.faces(f, 2))).transpose() /
+         3.0;
+}
+
+bool inSorted(const std::vector<std::int64_t>& ids, std::int64_t id) {
+  return std::binary_search(ids.begin(), ids.end(), id);
+}
+
+/// The boundary loops of the faces `faces` of `m` (directed as the faces run), or empty with `why` set
+/// when a vertex starts two boundary edges (the boundary is not a set of simple loops).
+std::vector<std::vector<Index>> boundaryLoops(const Mesh& m, const std::vector<Eigen::Index>& faces, std::string& why) {
+  std::unordered_set<std::uint64_t> directed;
+  directed.reserve(3 * faces.size());
+  for (const Eigen::Index f : faces) {
+    for (int k = 0; k < 3; ++k) directed.insert(edgeKey(m.faces(f, k), m.faces(f, (k + 1) % 3)));
+  }
+  std::unordered_map<Index, Index> next;
+  for (const Eigen::Index f : faces) {
+    for (int k = 0; k < 3; ++k) {
+      const Index a = m.faces(f, k), b = m.faces(f, (k + 1) % 3);
+      if (directed.count(edgeKey(b, a)) != 0) continue;
+      if (!next.emplace(a, b).second) {
+        why = "a boundary vertex starts two boundary edges";
+        return {};
+      }
+    }
+  }
+  std::vector<std::vector<Index>> loops;
+  std::unordered_set<Index> done;
+  // In vertex order, so that the loops (and the splice) do not depend on the hash map's order.
+  std::vector<Index> starts;
+  starts.reserve(next.size());
+  for (const auto& [a, b] : next) starts.push_back(a);
+  std::sort(starts.begin(), starts.end());
+  for (const Index s : starts) {
+    if (done.count(s) != 0) continue;
+    std::vector<Index> loop;
+    Index v = s;
+    do {
+      if (!done.insert(v).second) {
+        why = "a boundary loop passes a vertex twice";
+        return {};
+      }
+      loop.push_back(v);
+      const auto it = next.find(v);
+      if (it == next.end()) {
+        why = "a boundary edge ends where no boundary edge starts";
+        return {};
+      }
+      v = it->second;
+    } while (v != s);
+    loops.push_back(std::move(loop));
+  }
+  return loops;
+}
+
+}  // namespace
+
+std::vector<std::int64_t> dilatedCells(const GridSpec& grid, const std::vector<std::array<int, 3>>& cells, int radius) {
+  std::vector<std::int64_t> out;
+  out.reserve(cells.size() * static_cast<std::size_t>((2 * radius + 1) * (2 * radius + 1) * (2 * radius + 1)));
+  for (const auto& c : cells) {
+    for (int dz = -radius; dz <= radius; ++dz) {
+      for (int dy = -radius; dy <= radius; ++dy) {
+        for (int dx = -radius; dx <= radius; ++dx) {
+          const int x = c[0] + dx, y = c[1] + dy, z = c[2] + dz;
+          if (x < 0 || y < 0 || z < 0 || x >= grid.cells(0) || y >= grid.cells(1) || z >= grid.cells(2)) continue;
+          out.push_back(x + std::int64_t{grid.cells(0)} * (y + std::int64_t{grid.cells(1)} * z));
+        }
+      }
+    }
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
+SpliceResult spliceZone(const Mesh& finished, const Mesh& extracted, const GridSpec& grid,
+                        const std::vector<std::int64_t>& inner, const std::vector<std::int64_t>& outer,
+                        const FieldGradientSampler& sampler, double iso, double side, const CleanOptions& clean,
+                        const ProjectOptions& project) {
+  SpliceResult r;
+  const double cell = grid.cellSize().maxCoeff();
+  // The finished mesh's faces in the outer zone go; the extraction's in the inner zone come.
+  std::vector<Eigen::Index> kept, removed, patch;
+  for (Eigen::Index f = 0; f < finished.faces.rows(); ++f) {
+    (inSorted(outer, cellId(grid, centroid(finished, f))) ? removed : kept).push_back(f);
+  }
+  for (Eigen::Index f = 0; f < extracted.faces.rows(); ++f) {
+    if (inSorted(inner, cellId(grid, centroid(extracted, f)))) patch.push_back(f);
+  }
+  r.removedFaces = removed.size();
+  r.patchFaces = patch.size();
+  if (removed.empty()) {
+    r.why = "no face of the mesh in the zone";
+    return r;
+  }
+  // The hole's loops, as the kept faces run them (each edge of a kept face whose twin was removed).
+  std::vector<std::vector<Index>> holes;
+  {
+    std::unordered_set<std::uint64_t> gone;
+    for (const Eigen::Index f : removed) {
+      for (int k = 0; k < 3; ++k) gone.insert(edgeKey(finished.faces(f, k), finished.faces(f, (k + 1) % 3)));
+    }
+    // The kept faces next to the hole are enough to find its loops: boundaryLoops of them would also
+    // report the far side of that ring, so the loops are built from the hole's edges directly.
+    std::unordered_map<Index, Index> next;
+    for (const Eigen::Index f : kept) {
+      for (int k = 0; k < 3; ++k) {
+        const Index a = finished.faces(f, k), b = finished.faces(f, (k + 1) % 3);
+        if (gone.count(edgeKey(b, a)) == 0) continue;
+        if (!next.emplace(a, b).second) {
+          r.why = "the hole's boundary touches itself at a vertex";
+          return r;
+        }
+      }
+    }
+    std::vector<Index> starts;
+    for (const auto& [a, b] : next) starts.push_back(a);
+    std::sort(starts.begin(), starts.end());
+    std::unordered_set<Index> done;
+    for (const Index s : starts) {
+      if (done.count(s) != 0) continue;
+      std::vector<Index> loop;
+      Index v = s;
+      do {
+        if (!done.insert(v).second) {
+          r.why = "the hole's boundary passes a vertex twice";
+          return r;
+        }
+        loop.push_back(v);
+        const auto it = next.find(v);
+        if (it == next.end()) {
+          r.why = "the hole's boundary is not closed (the mesh is not closed there)";
+          return r;
+        }
+        v = it->second;
+      } while (v != s);
+      holes.push_back(std::move(loop));
+    }
+  }
+  std::vector<std::vector<Index>> rims = boundaryLoops(extracted, patch, r.why);
+  if (!r.why.empty()) {
+    r.why = "the patch: " + r.why;
+    return r;
+  }
+  if (holes.size() != rims.size()) {
+    r.why = "the hole has " + std::to_string(holes.size()) + " boundary loops and the patch " +
+            std::to_string(rims.size());
+    return r;
+  }
+  r.loops = holes.size();
+  // Pairs: each hole loop with the patch loop nearest on average (at most 64 of its vertices measured);
+  // one to one, within three cells.
+  const auto at = [](const Mesh& m, Index v) { return Vec(m.vertices.row(v).transpose()); };
+  std::vector<std::size_t> partner(holes.size());
+  std::vector<char> taken(rims.size(), 0);
+  for (std::size_t k = 0; k < holes.size(); ++k) {
+    const std::vector<Index>& a = holes[k];
+    const std::size_t stride = std::max<std::size_t>(1, a.size() / 64);
+    double best = HUGE_VAL;
+    std::size_t bestLoop = rims.size();
+    for (std::size_t l = 0; l < rims.size(); ++l) {
+      double sum = 0.0;
+      std::size_t count = 0;
+      for (std::size_t i = 0; i < a.size(); i += stride) {
+        double nearest = HUGE_VAL;
+        for (const Index b : rims[l]) nearest = std::min(nearest, (at(finished, a[i]) - at(extracted, b)).squaredNorm());
+        sum += std::sqrt(nearest);
+        ++count;
+      }
+      const double mean = sum / static_cast<double>(count);
+      if (mean < best) {
+        best = mean;
+        bestLoop = l;
+      }
+    }
+    if (bestLoop == rims.size() || taken[bestLoop] || !(best <= 3.0 * cell)) {
+      r.why = "the hole's and the patch's boundary loops do not pair up within three cells";
+      return r;
+    }
+    taken[bestLoop] = 1;
+    partner[k] = bestLoop;
+  }
+
+  // The patch and band as one open mesh: the hole loops' vertices first, then the patch's.
+  std::vector<Vec> sv;
+  std::vector<std::array<Index, 3>> sf;
+  std::unordered_map<Index, Index> fromFinished, fromExtracted;
+  const auto addFinished = [&](Index v) {
+    const auto [it, fresh] = fromFinished.emplace(v, static_cast<Index>(sv.size()));
+    if (fresh) sv.push_back(at(finished, v));
+    return it->second;
+  };
+  const auto addExtracted = [&](Index v) {
+    const auto [it, fresh] = fromExtracted.emplace(v, static_cast<Index>(sv.size()));
+    if (fresh) sv.push_back(at(extracted, v));
+    return it->second;
+  };
+  for (const auto& loop : holes) {
+    for (const Index v : loop) addFinished(v);
+  }
+  const std::size_t holeVertices = sv.size();
+  for (const Eigen::Index f : patch) {
+    sf.push_back({addExtracted(extracted.faces(f, 0)), addExtracted(extracted.faces(f, 1)),
+                  addExtracted(extracted.faces(f, 2))});
+  }
+  // The level set's normal (−∇f, unit) at every vertex so far and at the rims' (all in sv once the
+  // patch's faces are in).
+  std::vector<Vec> up(sv.size(), Vec::Zero());
+  {
+    Points q(static_cast<Eigen::Index>(sv.size()), 3);
+    for (std::size_t v = 0; v < sv.size(); ++v) q.row(static_cast<Eigen::Index>(v)) = sv[v].transpose();
+    Eigen::VectorXd values;
+    Points gradients;
+    sampler(q, values, gradients);
+    for (std::size_t v = 0; v < sv.size(); ++v) {
+      const Vec g = -gradients.row(static_cast<Eigen::Index>(v)).transpose();
+      if (g.norm() > 0.0) up[v] = g.normalized();
+    }
+  }
+  // The band: the hole loop a runs against the patch loop b (the two bound an annulus, so a forward pairs
+  // with b backward), from a's first vertex and b's vertex nearest to it. Advancing a: (a_{i+1}, a_i, b_t) holds a_{i+1} → a_i, the reverse of the kept face's edge;
+  // advancing b: (a_i, b_t, b_{t+1}) holds the reverse of the patch's edge b_{t+1} → b_t.
+  for (std::size_t k = 0; k < holes.size(); ++k) {
+    const std::vector<Index>& a = holes[k];
+    const std::vector<Index>& b = rims[partner[k]];
+    const std::size_t n = a.size(), m = b.size();
+    std::size_t s = 0;
+    double nearest = HUGE_VAL;
+    for (std::size_t j = 0; j < m; ++j) {
+      const double d = (at(finished, a[0]) - at(extracted, b[j])).squaredNorm();
+      if (d < nearest) {
+        nearest = d;
+        s = j;
+      }
+    }
+    const auto A = [&](std::size_t i) { return fromFinished.at(a[i % n]); };
+    const auto B = [&](std::size_t t) { return addExtracted(b[(s + m - t % m) % m]); };
+    // The zip of least cost (dynamic programming over the (i, t) steps, after Fuchs, Kedem and Uselton's
+    // contour tiling): each triangle costs its area, plus a penalty where its normal turns from the level
+    // set's (−∇f at its corners) by more than 60°, large when it faces the other way.
+    if ((n + 1) * (m + 1) > kMaxZipSteps) {
+      r.why = "boundary loops of " + std::to_string(n) + " and " + std::to_string(m) + " vertices: too long to zip";
+      return r;
+    }
+    const auto normalAt = [&](Index local) { return up[static_cast<std::size_t>(local)]; };
+    const auto cost = [&](Index x, Index y, Index z) {
+      const Vec& p0 = sv[static_cast<std::size_t>(x)];
+      const Vec nrm = (sv[static_cast<std::size_t>(y)] - p0).cross(sv[static_cast<std::size_t>(z)] - p0);
+      const double area = 0.5 * nrm.norm();
+      const Vec ref = normalAt(x) + normalAt(y) + normalAt(z);
+      const double c = area > 0.0 && ref.norm() > 0.0 ? nrm.dot(ref) / (nrm.norm() * ref.norm()) : 0.0;
+      return area + (c < 0.5 ? cell * cell * (0.5 - c) * (c < 0.0 ? 100.0 : 4.0) : 0.0);
+    };
+    const std::size_t width = m + 1;
+    std::vector<double> best((n + 1) * width, HUGE_VAL);
+    std::vector<char> fromA((n + 1) * width, 0);
+    for (std::size_t i = 0; i <= n; ++i) {
+      for (std::size_t t = 0; t <= m; ++t) {
+        const double here = i == 0 && t == 0 ? 0.0 : best[i * width + t];
+        if (!(here < HUGE_VAL)) continue;
+        if (i < n) {
+          const double c = here + cost(A(i + 1), A(i), B(t));
+          if (c < best[(i + 1) * width + t]) {
+            best[(i + 1) * width + t] = c;
+            fromA[(i + 1) * width + t] = 1;
+          }
+        }
+        if (t < m) {
+          const double c = here + cost(A(i), B(t), B(t + 1));
+          if (c < best[i * width + t + 1]) {
+            best[i * width + t + 1] = c;
+            fromA[i * width + t + 1] = 0;
+          }
+        }
+      }
+    }
+    std::vector<std::array<Index, 3>> zip;
+    for (std::size_t i = n, t = m; i > 0 || t > 0;) {
+      if (fromA[i * width + t]) {
+        --i;
+        zip.push_back({A(i + 1), A(i), B(t)});
+      } else {
+        --t;
+        zip.push_back({A(i), B(t), B(t + 1)});
+      }
+    }
+    sf.insert(sf.end(), zip.rbegin(), zip.rend());
+    r.bandFaces += zip.size();
+  }
+
+  Mesh s;
+  s.vertices.resize(static_cast<Eigen::Index>(sv.size()), 3);
+  for (std::size_t v = 0; v < sv.size(); ++v) s.vertices.row(static_cast<Eigen::Index>(v)) = sv[v].transpose();
+  s.faces.resize(static_cast<Eigen::Index>(sf.size()), 3);
+  for (std::size_t f = 0; f < sf.size(); ++f) {
+    for (int k = 0; k < 3; ++k) s.faces(static_cast<Eigen::Index>(f), k) = sf[f][static_cast<std::size_t>(k)];
+  }
+  // Finished on its own: the cleaning locks the ends of boundary edges and the projection holds them, so
+  // the hole's vertices keep their exact positions and are found again by them.
+  CleanResult c = cleanMesh(s, clean);
+  r.clean = c.report;
+  ProjectOptions po = project;
+  po.keepBoundary = true;
+  ProjectResult p = projectToLevelSet(sampler, c.mesh, iso, side, po);
+  r.project = p.report;
+  const Mesh& done = p.mesh;
+
+  std::map<std::array<double, 3>, Index> holeAt;
+  for (const auto& [v, local] : fromFinished) {
+    holeAt[{sv[static_cast<std::size_t>(local)].x(), sv[static_cast<std::size_t>(local)].y(),
+            sv[static_cast<std::size_t>(local)].z()}] = v;
+  }
+  // The patch's boundary after cleaning and projection must be the hole's loops, vertex for vertex.
+  std::vector<Eigen::Index> all(static_cast<std::size_t>(done.faces.rows()));
+  for (Eigen::Index f = 0; f < done.faces.rows(); ++f) all[static_cast<std::size_t>(f)] = f;
+  std::string why;
+  const std::vector<std::vector<Index>> after = boundaryLoops(done, all, why);
+  if (!why.empty()) {
+    r.why = "the finished patch: " + why;
+    return r;
+  }
+  std::size_t boundaryVertices = 0;
+  std::vector<Index> finalIndex(static_cast<std::size_t>(done.vertices.rows()), -1);
+  for (const auto& loop : after) {
+    for (const Index v : loop) {
+      const auto it = holeAt.find({done.vertices(v, 0), done.vertices(v, 1), done.vertices(v, 2)});
+      if (it == holeAt.end()) {
+        r.why = "the finished patch's boundary moved off the hole's";
+        return r;
+      }
+      finalIndex[static_cast<std::size_t>(v)] = it->second;
+      ++boundaryVertices;
+    }
+  }
+  if (after.size() != holes.size() || boundaryVertices != holeVertices) {
+    r.why = "the finished patch's boundary is not the hole's";
+    return r;
+  }
+
+  // The result: the kept faces, then the patch and band; unreferenced vertices dropped.
+  std::vector<Vec> outV;
+  for (Eigen::Index v = 0; v < finished.vertices.rows(); ++v) outV.push_back(at(finished, v));
+  for (Eigen::Index v = 0; v < done.vertices.rows(); ++v) {
+    if (finalIndex[static_cast<std::size_t>(v)] < 0) {
+      finalIndex[static_cast<std::size_t>(v)] = static_cast<Index>(outV.size());
+      outV.push_back(Vec(done.vertices.row(v).transpose()));
+    }
+  }
+  std::vector<std::array<Index, 3>> outF;
+  outF.reserve(kept.size() + static_cast<std::size_t>(done.faces.rows()));
+  for (const Eigen::Index f : kept) outF.push_back({finished.faces(f, 0), finished.faces(f, 1), finished.faces(f, 2)});
+  for (Eigen::Index f = 0; f < done.faces.rows(); ++f) {
+    r.newFaces.push_back(static_cast<std::int64_t>(outF.size()));
+    outF.push_back({finalIndex[static_cast<std::size_t>(done.faces(f, 0))],
+                    finalIndex[static_cast<std::size_t>(done.faces(f, 1))],
+                    finalIndex[static_cast<std::size_t>(done.faces(f, 2))]});
+  }
+  std::vector<Index> renumber(outV.size(), -1);
+  Index used = 0;
+  for (const auto& t : outF) {
+    for (const Index v : t) {
+      if (renumber[static_cast<std::size_t>(v)] < 0) renumber[static_cast<std::size_t>(v)] = used++;
+    }
+  }
+  r.mesh.vertices.resize(used, 3);
+  for (std::size_t v = 0; v < outV.size(); ++v) {
+    if (renumber[v] >= 0) r.mesh.vertices.row(renumber[v]) = outV[v].transpose();
+  }
+  r.mesh.faces.resize(static_cast<Eigen::Index>(outF.size()), 3);
+  for (std::size_t f = 0; f < outF.size(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      r.mesh.faces(static_cast<Eigen::Index>(f), k) = renumber[static_cast<std::size_t>(outF[f][static_cast<std::size_t>(k)])];
+    }
+  }
+  // The faces taken out and put in, each as a mesh of its own (for the caller's measures).
+  const auto subMesh = [](const Mesh& from, const auto& faces) {
+    Mesh m;
+    std::unordered_map<Index, Index> local;
+    std::vector<Index> order;
+    for (const auto f : faces) {
+      for (int k = 0; k < 3; ++k) {
+        const Index v = from.faces(static_cast<Eigen::Index>(f), k);
+        if (local.emplace(v, static_cast<Index>(order.size())).second) order.push_back(v);
+      }
+    }
+    m.vertices.resize(static_cast<Eigen::Index>(order.size()), 3);
+    for (std::size_t i = 0; i < order.size(); ++i) m.vertices.row(static_cast<Eigen::Index>(i)) = from.vertices.row(order[i]);
+    m.faces.resize(static_cast<Eigen::Index>(faces.size()), 3);
+    Eigen::Index row = 0;
+    for (const auto f : faces) {
+      for (int k = 0; k < 3; ++k) m.faces(row, k) = local.at(from.faces(static_cast<Eigen::Index>(f), k));
+      ++row;
+    }
+    return m;
+  };
+  r.removed = subMesh(finished, removed);
+  r.patch = subMesh(r.mesh, r.newFaces);
+  r.ok = true;
+  return r;
+}
+
+}  // namespace duplexfit::detail

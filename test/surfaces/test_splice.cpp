@@ -1,0 +1,148 @@
+// The neck pass's local replacement (lib/surfaces/splice.hpp): a zone of a finished sphere replaced by a
+// finer extraction there, joined by a band; the result closed, oriented, not self-intersecting, on the
+// sphere, the faces outside the zone untouched; and the refusals when the boundaries do not pair up.
+#include <doctest/doctest.h>
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <set>
+#include <vector>
+
+#include "duplexfit/field.hpp"
+#include "duplexfit/measure.hpp"
+#include "duplexfit/mesh_finish.hpp"
+#include "duplexfit/polygonize.hpp"
+#include "duplexfit/surfaces.hpp"
+#include "surfaces/splice.hpp"
+
+namespace {
+
+using namespace duplexfit;
+
+/// f = −0.5 + φ(|x|/2) (one C2 Wendland bump): its level sets are spheres, |∇f| ≈ 1 near f = 0.
+ImplicitField bump() {
+  FieldLevel level;
+  level.sigma = 2.0;
+  level.centres = Points::Zero(1, 3);
+  level.weights = Eigen::VectorXd::Ones(1);
+  const Eigen::AlignedBox3d bounds(Eigen::Vector3d::Constant(-0.7), Eigen::Vector3d::Constant(0.7));
+  return ImplicitField(Normalization{}, -0.5, {level}, {}, bounds);
+}
+
+/// |x| where the bump's f = 0, by bisection.
+double zeroRadius(const ImplicitField& f) {
+  double lo = 0.0, hi = 2.0;
+  for (int it = 0; it < 100; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (f.value(Eigen::Vector3d(mid, 0, 0)) > 0.0 ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+std::array<int, 3> cellOf(const GridSpec& grid, const Eigen::Vector3d& p) {
+  std::array<int, 3> c{};
+  for (int a = 0; a < 3; ++a) {
+    c[static_cast<std::size_t>(a)] = static_cast<int>(std::floor((p(a) - grid.box.min()(a)) / grid.cellSize()(a)));
+  }
+  return c;
+}
+
+}  // namespace
+
+TEST_SUITE("surfaces") {
+
+TEST_CASE("the neck pass's splice: a zone of a finished sphere replaced by a finer extraction, closed and on the sphere") {
+  const ImplicitField field = bump();
+  const FieldEvaluator evaluator(Device::reference(), field, Precision::Double);
+  const double radius = zeroRadius(field);
+  SurfaceOptions options;
+  SurfaceResult first = extractSurfaces(evaluator, field, {0.0}, options);
+  const GridSpec grid = first.grid;
+  const double cell = grid.cellSize().maxCoeff(), side = field.bounds().sizes().maxCoeff();
+  const FinishResult finished = finishSurfaces(evaluator, field, std::move(first.meshes), {0.0}, cell, options.finish);
+  const Mesh& mesh = finished.meshes[0];
+  REQUIRE(analyzeTopology(mesh).watertight());
+
+  // The cells around a point of the sphere refined one level more, the level set extracted again.
+  const std::array<int, 3> centre = cellOf(grid, radius * Eigen::Vector3d(1.0, 0.3, 0.2).normalized());
+  std::vector<std::array<int, 3>> cells;
+  for (int dz = -2; dz <= 2; ++dz) {
+    for (int dy = -2; dy <= 2; ++dy) {
+      for (int dx = -2; dx <= 2; ++dx) cells.push_back({centre[0] + dx, centre[1] + dy, centre[2] + dz});
+    }
+  }
+  PolygonizeOptions po = surfacePolygonizeOptions(field, options);
+  po.refineDeeperCells = cells;
+  const PolygonizeResult again = polygonize(valueSampler(evaluator), grid, {0.0}, po);
+  const std::vector<std::int64_t> inner = detail::dilatedCells(grid, cells, 2);
+  const std::vector<std::int64_t> outer = detail::dilatedCells(grid, cells, 3);
+  CHECK(inner.size() == 9u * 9u * 9u);
+  CHECK(outer.size() == 11u * 11u * 11u);
+  const FieldGradientSampler sampler = detail::fieldGradientSampler(evaluator);
+  const detail::SpliceResult s =
+      detail::spliceZone(mesh, again.meshes[0], grid, inner, outer, sampler, 0.0, side,
+                         detail::finishCleanOptions(options.finish, cell), detail::finishProjectOptions(options.finish, side, cell));
+  INFO(s.why);
+  REQUIRE(s.ok);
+  CHECK(s.loops == 1);  // a disc of the sphere
+  CHECK(s.removedFaces > 100);
+  CHECK(s.bandFaces > 0);
+  // The patch is finer than what it replaced (three levels of refinement there instead of two or none).
+  CHECK(s.patch.faces.rows() > static_cast<Eigen::Index>(s.removedFaces));
+  CHECK(s.removed.faces.rows() == static_cast<Eigen::Index>(s.removedFaces));
+  const MeshTopology t = analyzeTopology(s.mesh);
+  CHECK(t.watertight());
+  CHECK(t.manifold());
+  CHECK(t.oriented());
+  CHECK(t.components == 1);
+  CHECK(t.eulerCharacteristic == 2);
+  CheckOptions all;
+  CHECK(findSelfIntersections(s.mesh, all).count == 0);
+  CHECK(s.mesh.faces.rows() == mesh.faces.rows() - static_cast<Eigen::Index>(s.removedFaces) +
+                                   static_cast<Eigen::Index>(s.newFaces.size()));
+  // Every face outside the zone is the finished mesh's, the same three points.
+  std::set<std::array<double, 9>> before, after;
+  const auto key = [](const Mesh& m, Eigen::Index f) {
+    std::array<double, 9> k{};
+    for (int c = 0; c < 3; ++c) {
+      for (int a = 0; a < 3; ++a) k[static_cast<std::size_t>(3 * c + a)] = m.vertices(m.faces(f, c), a);
+    }
+    return k;
+  };
+  for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) before.insert(key(mesh, f));
+  std::set<std::int64_t> fresh(s.newFaces.begin(), s.newFaces.end());
+  std::size_t old = 0, changed = 0;
+  for (Eigen::Index f = 0; f < s.mesh.faces.rows(); ++f) {
+    if (fresh.count(f) != 0) continue;
+    changed += before.count(key(s.mesh, f)) == 1 ? 0 : 1;
+    ++old;
+  }
+  CHECK(changed == 0);
+  CHECK(old == static_cast<std::size_t>(mesh.faces.rows()) - s.removedFaces);
+  // On the sphere: the new vertices projected onto it (the band's faces and the patch's within the target).
+  double worst = 0.0;
+  for (Eigen::Index v = 0; v < s.patch.vertices.rows(); ++v) {
+    worst = std::max(worst, std::abs(s.patch.vertices.row(v).norm() - radius));
+  }
+  CHECK(worst <= 1e-5 * side);
+  const LevelSetDeviation d = levelSetDeviation(evaluator, field, s.patch, 0.0, 0);
+  CHECK(d.relativeMax <= 1e-3);
+
+  // Refused, nothing made: a patch with no face in the zone (one hole loop, no patch loop) and an inner zone
+  // that reaches past the outer one (the boundaries cross: not the same number of loops, or too far).
+  const detail::SpliceResult none = detail::spliceZone(mesh, Mesh{}, grid, inner, outer, sampler, 0.0, side,
+                                                       detail::finishCleanOptions(options.finish, cell),
+                                                       detail::finishProjectOptions(options.finish, side, cell));
+  CHECK_FALSE(none.ok);
+  CHECK(none.why.find("boundary loops") != std::string::npos);
+  CHECK(none.mesh.faces.rows() == 0);
+  const std::vector<std::int64_t> nowhere = detail::dilatedCells(grid, {{0, 0, 0}}, 1);  // a corner: no face
+  const detail::SpliceResult empty = detail::spliceZone(mesh, again.meshes[0], grid, nowhere, nowhere, sampler, 0.0,
+                                                        side, detail::finishCleanOptions(options.finish, cell),
+                                                        detail::finishProjectOptions(options.finish, side, cell));
+  CHECK_FALSE(empty.ok);
+  CHECK(empty.why == "no face of the mesh in the zone");
+}
+
+}  // TEST_SUITE
