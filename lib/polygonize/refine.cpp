@@ -11,11 +11,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <exception>
 #include <cmath>
 #include <limits>
 #include <map>
 #include <stdexcept>
 #include <unordered_map>
+
+#include <omp.h>
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/timer.hpp"
@@ -550,13 +553,61 @@ std::vector<PatchMesh> extractRefined(const RefinedRegion& region, const NodeSto
     for (double x : c) largest = std::max(largest, std::abs(x));
   }
   const double minNodeDistance = 64.0 * largest * static_cast<double>(std::numeric_limits<float>::epsilon());
+  // The tetrahedra in contiguous parts (by count), each contoured by one thread with vertices of its own;
+  // the parts are then merged in order, each vertex taking the id of its key's first appearance, which is
+  // the order one pass over all the tetrahedra gives: the same mesh whatever the threads.
+  std::vector<std::size_t> cut{0};
+  {
+    std::size_t total = 0;
+    for (const auto& [from, to] : spans) total += to - from;
+    const std::size_t parts = std::max<std::size_t>(1, std::min<std::size_t>(spans.size(), 4 * static_cast<std::size_t>(omp_get_max_threads())));
+    std::size_t done = 0;
+    for (std::size_t i = 0; i < spans.size(); ++i) {
+      done += spans[i].second - spans[i].first;
+      if (cut.size() < parts && done * parts >= total * cut.size()) cut.push_back(i + 1);
+    }
+    if (cut.back() != spans.size()) cut.push_back(spans.size());
+  }
+  const auto nParts = static_cast<long long>(cut.size() - 1);
   for (std::size_t q = 0; q < isoValues.size(); ++q) {
-    PatchBuilder builder(region, store, coords, minNodeDistance, isoValues[q], meshes[q]);
-    forEachTet([&](const FineTet& t) {
-      float f[4];
-      for (int v = 0; v < 4; ++v) f[v] = values.at(pack(t.x[static_cast<std::size_t>(v)]));
-      builder.tet(t, f);
-    });
+    std::vector<PatchMesh> part(cut.size() - 1);
+    std::exception_ptr error;
+#pragma omp parallel for schedule(dynamic, 1)
+    for (long long c = 0; c < nParts; ++c) {
+      try {
+        PatchBuilder builder(region, store, coords, minNodeDistance, isoValues[q], part[static_cast<std::size_t>(c)]);
+        for (std::size_t sp = cut[static_cast<std::size_t>(c)]; sp < cut[static_cast<std::size_t>(c) + 1]; ++sp) {
+          for (std::size_t t = spans[sp].first; t < spans[sp].second; ++t) {
+            const FineTet& tet = region.tets[t];
+            float f[4];
+            for (int v = 0; v < 4; ++v) f[v] = values.at(pack(tet.x[static_cast<std::size_t>(v)]));
+            builder.tet(tet, f);
+          }
+        }
+      } catch (...) {
+#pragma omp critical(duplexfit_refine_error)
+        if (!error) error = std::current_exception();
+      }
+    }
+    if (error) std::rethrow_exception(error);
+    PatchMesh& out = meshes[q];
+    PointMap<std::int32_t> ids;
+    std::vector<std::int32_t> local;
+    for (const PatchMesh& p : part) {
+      local.resize(p.keys.size());
+      for (std::size_t i = 0; i < p.keys.size(); ++i) {
+        const auto next = static_cast<std::int32_t>(out.keys.size());
+        if (ids.emplace(p.keys[i], next)) {
+          out.keys.push_back(p.keys[i]);
+          out.xyz.insert(out.xyz.end(), p.xyz.begin() + static_cast<std::ptrdiff_t>(3 * i),
+                         p.xyz.begin() + static_cast<std::ptrdiff_t>(3 * i + 3));
+          local[i] = next;
+        } else {
+          local[i] = ids.at(p.keys[i]);
+        }
+      }
+      for (const std::int32_t v : p.tris) out.tris.push_back(local[static_cast<std::size_t>(v)]);
+    }
   }
 
   // Contours that leave the region through its (unrefined) boundary faces must be continued by the
