@@ -221,16 +221,18 @@ constexpr int kSpliceInner = 4;
 constexpr int kSpliceGap = 1;
 /// Cells around each cluster of the replaced zone in the box extracted again.
 constexpr int kBoxMargin = 3;
+/// Boxes (separate clusters of the zone) at most; more leave the round to the whole-mesh pass.
+constexpr std::size_t kMaxBoxes = 64;
 
 /// The neck pass's local replacement on `mesh` (see neckPass): the faces around `zoneCells` are replaced by
 /// the level set extracted with `cells` refined one level more. True when kept (mesh, finish's deviation and
 /// r's counts updated); false with `why` otherwise, nothing changed. `before`: mesh's topology. In the last
 /// round the result must be within the deviation limit (the whole extraction is the caller's last resort).
-bool localNeckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const GridSpec& grid, double iso,
-                   const SurfaceOptions& surface, double minComponent, const std::vector<std::array<int, 3>>& cells,
-                   const std::vector<std::array<int, 3>>& zoneCells, const MeshTopology& before, bool lastRound,
-                   PolygonizeOptions po, Mesh& mesh, MeshFinishReport& finish, NeckPassReport& r, std::string& why,
-                   const std::string& label, const Progress& progress) {
+bool localNeckPassOnce(const FieldEvaluator& evaluator, const ImplicitField& field, const GridSpec& grid, double iso,
+                       const SurfaceOptions& surface, double minComponent, const std::vector<std::array<int, 3>>& cells,
+                       const std::vector<std::array<int, 3>>& zoneCells, const MeshTopology& before, bool lastRound,
+                       PolygonizeOptions po, Mesh& mesh, MeshFinishReport& finish, NeckPassReport& r, std::string& why,
+                       const std::string& label, const Progress& progress) {
   const std::vector<std::int64_t> inner = detail::dilatedCells(grid, zoneCells, kSpliceInner);
   const std::vector<std::int64_t> outer = detail::dilatedCells(grid, zoneCells, kSpliceInner + kSpliceGap);
   // The level set extracted again in boxes of the grid's lattice around the clusters of the zone (a box
@@ -238,7 +240,10 @@ bool localNeckPass(const FieldEvaluator& evaluator, const ImplicitField& field, 
   // zone, well inside each box, so the boxes' own borders do not matter.
   const Mesh extracted = [&] {
     const std::int64_t nx = grid.cells(0), ny = grid.cells(1);
-    const auto coords = [&](std::int64_t id) { return std::array<int, 3>{static_cast<int>(id % nx), static_cast<int>((id / nx) % ny), static_cast<int>(id / (nx * ny))}; };
+    const auto coords = [&](std::int64_t id) {
+      return std::array<int, 3>{static_cast<int>(id % nx), static_cast<int>((id / nx) % ny),
+                                static_cast<int>(id / (nx * ny))};
+    };
     std::vector<std::array<int, 6>> boxes;  // lo xyz, hi xyz (inclusive)
     std::vector<char> seen(outer.size(), 0);
     for (std::size_t start = 0; start < outer.size(); ++start) {
@@ -287,13 +292,17 @@ bool localNeckPass(const FieldEvaluator& evaluator, const ImplicitField& field, 
           }
           if (!overlap) continue;
           for (int a = 0; a < 3; ++a) {
-            boxes[i][static_cast<std::size_t>(a)] = std::min(boxes[i][static_cast<std::size_t>(a)], boxes[j][static_cast<std::size_t>(a)]);
-            boxes[i][static_cast<std::size_t>(3 + a)] = std::max(boxes[i][static_cast<std::size_t>(3 + a)], boxes[j][static_cast<std::size_t>(3 + a)]);
+            const auto lo = static_cast<std::size_t>(a), hi = static_cast<std::size_t>(3 + a);
+            boxes[i][lo] = std::min(boxes[i][lo], boxes[j][lo]);
+            boxes[i][hi] = std::max(boxes[i][hi], boxes[j][hi]);
           }
           boxes.erase(boxes.begin() + static_cast<std::ptrdiff_t>(j));
           merged = true;
         }
       }
+    }
+    if (boxes.size() > kMaxBoxes) {
+      throw InvalidArgument(std::to_string(boxes.size()) + " separate zones (more than " + std::to_string(kMaxBoxes) + ")");
     }
     const Eigen::Vector3d h = grid.cellSize();
     Mesh all;
@@ -397,6 +406,24 @@ bool localNeckPass(const FieldEvaluator& evaluator, const ImplicitField& field, 
   finish.deviation = d;
   finish.deviationMeasured = true;
   return true;
+}
+
+/// localNeckPassOnce, with an extraction or splice that fails (a box the polygoniser refuses, too many
+/// zones, memory) left to the whole-mesh pass of the caller; a cancellation is not.
+bool localNeckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const GridSpec& grid, double iso,
+                   const SurfaceOptions& surface, double minComponent, const std::vector<std::array<int, 3>>& cells,
+                   const std::vector<std::array<int, 3>>& zoneCells, const MeshTopology& before, bool lastRound,
+                   const PolygonizeOptions& po, Mesh& mesh, MeshFinishReport& finish, NeckPassReport& r,
+                   std::string& why, const std::string& label, const Progress& progress) {
+  try {
+    return localNeckPassOnce(evaluator, field, grid, iso, surface, minComponent, cells, zoneCells, before, lastRound,
+                             po, mesh, finish, r, why, label, progress);
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const std::exception& e) {
+    why = e.what();
+    return false;
+  }
 }
 
 /// SurfaceOptions::neckPassMaxFaces for one finished mesh of {f = iso} extracted on `grid`: returns true when

@@ -560,7 +560,8 @@ std::vector<PatchMesh> extractRefined(const RefinedRegion& region, const NodeSto
   {
     std::size_t total = 0;
     for (const auto& [from, to] : spans) total += to - from;
-    const std::size_t parts = std::max<std::size_t>(1, std::min<std::size_t>(spans.size(), 4 * static_cast<std::size_t>(omp_get_max_threads())));
+    const std::size_t parts = std::max<std::size_t>(
+        1, std::min<std::size_t>(spans.size(), 4 * static_cast<std::size_t>(omp_get_max_threads())));
     std::size_t done = 0;
     for (std::size_t i = 0; i < spans.size(); ++i) {
       done += spans[i].second - spans[i].first;

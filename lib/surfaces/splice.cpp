@@ -255,7 +255,8 @@ SpliceResult spliceZone(const Mesh& finished, const Mesh& extracted, const GridS
     }
   }
   // The band: the hole loop a runs against the patch loop b (the two bound an annulus, so a forward pairs
-  // with b backward), from a's first vertex and b's vertex nearest to it. Advancing a: (a_{i+1}, a_i, b_t) holds a_{i+1} → a_i, the reverse of the kept face's edge;
+  // with b backward), from a's first vertex and b's vertex nearest to it. Advancing a: (a_{i+1}, a_i, b_t)
+  // holds a_{i+1} → a_i, the reverse of the kept face's edge;
   // advancing b: (a_i, b_t, b_{t+1}) holds the reverse of the patch's edge b_{t+1} → b_t.
   for (std::size_t k = 0; k < holes.size(); ++k) {
     const std::vector<Index>& a = holes[k];
