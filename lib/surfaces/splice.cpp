@@ -41,32 +41,15 @@ bool inSorted(const std::vector<std::int64_t>& ids, std::int64_t id) {
   return std::binary_search(ids.begin(), ids.end(), id);
 }
 
-/// The boundary loops of the faces `faces` of `m` (directed as the faces run), or empty with `why` set
-/// when a vertex starts two boundary edges (the boundary is not a set of simple loops).
-std::vector<std::vector<Index>> boundaryLoops(const Mesh& m, const std::vector<Eigen::Index>& faces, std::string& why) {
-  std::unordered_set<std::uint64_t> directed;
-  directed.reserve(3 * faces.size());
-  for (const Eigen::Index f : faces) {
-    for (int k = 0; k < 3; ++k) directed.insert(edgeKey(m.faces(f, k), m.faces(f, (k + 1) % 3)));
-  }
-  std::unordered_map<Index, Index> next;
-  for (const Eigen::Index f : faces) {
-    for (int k = 0; k < 3; ++k) {
-      const Index a = m.faces(f, k), b = m.faces(f, (k + 1) % 3);
-      if (directed.count(edgeKey(b, a)) != 0) continue;
-      if (!next.emplace(a, b).second) {
-        why = "a boundary vertex starts two boundary edges";
-        return {};
-      }
-    }
-  }
-  std::vector<std::vector<Index>> loops;
-  std::unordered_set<Index> done;
-  // In vertex order, so that the loops (and the splice) do not depend on the hash map's order.
+/// The loops of the directed boundary edges a → next[a], each from its smallest vertex and in the order of
+/// those (not the hash map's), or empty with `why` set when they do not close into simple loops.
+std::vector<std::vector<Index>> loopsOf(const std::unordered_map<Index, Index>& next, std::string& why) {
   std::vector<Index> starts;
   starts.reserve(next.size());
   for (const auto& [a, b] : next) starts.push_back(a);
   std::sort(starts.begin(), starts.end());
+  std::vector<std::vector<Index>> loops;
+  std::unordered_set<Index> done;
   for (const Index s : starts) {
     if (done.count(s) != 0) continue;
     std::vector<Index> loop;
@@ -79,7 +62,7 @@ std::vector<std::vector<Index>> boundaryLoops(const Mesh& m, const std::vector<E
       loop.push_back(v);
       const auto it = next.find(v);
       if (it == next.end()) {
-        why = "a boundary edge ends where no boundary edge starts";
+        why = "a boundary edge ends where no boundary edge starts (not closed there)";
         return {};
       }
       v = it->second;
@@ -87,6 +70,35 @@ std::vector<std::vector<Index>> boundaryLoops(const Mesh& m, const std::vector<E
     loops.push_back(std::move(loop));
   }
   return loops;
+}
+
+/// The directed edges of `faces` of `m`.
+std::unordered_set<std::uint64_t> directedEdges(const Mesh& m, const std::vector<Eigen::Index>& faces) {
+  std::unordered_set<std::uint64_t> out;
+  out.reserve(3 * faces.size());
+  for (const Eigen::Index f : faces) {
+    for (int k = 0; k < 3; ++k) out.insert(edgeKey(m.faces(f, k), m.faces(f, (k + 1) % 3)));
+  }
+  return out;
+}
+
+/// The loops of the edges a → b of `faces` of `m` whose reverse b → a is in `twins` (`twinIn`) or is not
+/// (!`twinIn`), or empty with `why` set when a vertex starts two of them or they do not close.
+std::vector<std::vector<Index>> loopsAlong(const Mesh& m, const std::vector<Eigen::Index>& faces,
+                                           const std::unordered_set<std::uint64_t>& twins, bool twinIn,
+                                           std::string& why) {
+  std::unordered_map<Index, Index> next;
+  for (const Eigen::Index f : faces) {
+    for (int k = 0; k < 3; ++k) {
+      const Index a = m.faces(f, k), b = m.faces(f, (k + 1) % 3);
+      if ((twins.count(edgeKey(b, a)) != 0) != twinIn) continue;
+      if (!next.emplace(a, b).second) {
+        why = "a boundary vertex starts two boundary edges";
+        return {};
+      }
+    }
+  }
+  return loopsOf(next, why);
 }
 
 }  // namespace
@@ -131,50 +143,15 @@ SpliceResult spliceZone(const Mesh& finished, const Mesh& extracted, const GridS
     return r;
   }
   // The hole's loops, as the kept faces run them (each edge of a kept face whose twin was removed).
-  std::vector<std::vector<Index>> holes;
-  {
-    std::unordered_set<std::uint64_t> gone;
-    for (const Eigen::Index f : removed) {
-      for (int k = 0; k < 3; ++k) gone.insert(edgeKey(finished.faces(f, k), finished.faces(f, (k + 1) % 3)));
-    }
-    // The kept faces next to the hole are enough to find its loops: boundaryLoops of them would also
-    // report the far side of that ring, so the loops are built from the hole's edges directly.
-    std::unordered_map<Index, Index> next;
-    for (const Eigen::Index f : kept) {
-      for (int k = 0; k < 3; ++k) {
-        const Index a = finished.faces(f, k), b = finished.faces(f, (k + 1) % 3);
-        if (gone.count(edgeKey(b, a)) == 0) continue;
-        if (!next.emplace(a, b).second) {
-          r.why = "the hole's boundary touches itself at a vertex";
-          return r;
-        }
-      }
-    }
-    std::vector<Index> starts;
-    for (const auto& [a, b] : next) starts.push_back(a);
-    std::sort(starts.begin(), starts.end());
-    std::unordered_set<Index> done;
-    for (const Index s : starts) {
-      if (done.count(s) != 0) continue;
-      std::vector<Index> loop;
-      Index v = s;
-      do {
-        if (!done.insert(v).second) {
-          r.why = "the hole's boundary passes a vertex twice";
-          return r;
-        }
-        loop.push_back(v);
-        const auto it = next.find(v);
-        if (it == next.end()) {
-          r.why = "the hole's boundary is not closed (the mesh is not closed there)";
-          return r;
-        }
-        v = it->second;
-      } while (v != s);
-      holes.push_back(std::move(loop));
-    }
+  // (The kept faces' own boundary would also give the far side of their ring around the hole.)
+  const std::vector<std::vector<Index>> holes =
+      loopsAlong(finished, kept, directedEdges(finished, removed), true, r.why);
+  if (!r.why.empty()) {
+    r.why = "the hole: " + r.why;
+    return r;
   }
-  std::vector<std::vector<Index>> rims = boundaryLoops(extracted, patch, r.why);
+  const std::vector<std::vector<Index>> rims =
+      loopsAlong(extracted, patch, directedEdges(extracted, patch), false, r.why);
   if (!r.why.empty()) {
     r.why = "the patch: " + r.why;
     return r;
@@ -352,7 +329,7 @@ SpliceResult spliceZone(const Mesh& finished, const Mesh& extracted, const GridS
   std::vector<Eigen::Index> all(static_cast<std::size_t>(done.faces.rows()));
   for (Eigen::Index f = 0; f < done.faces.rows(); ++f) all[static_cast<std::size_t>(f)] = f;
   std::string why;
-  const std::vector<std::vector<Index>> after = boundaryLoops(done, all, why);
+  const std::vector<std::vector<Index>> after = loopsAlong(done, all, directedEdges(done, all), false, why);
   if (!why.empty()) {
     r.why = "the finished patch: " + why;
     return r;
