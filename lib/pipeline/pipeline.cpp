@@ -500,11 +500,10 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
       // The zone: the cells new in this round (the earlier rounds' are already in the mesh).
       std::vector<std::array<int, 3>> zone;
       std::set_difference(cells.begin(), cells.end(), replaced.begin(), replaced.end(), std::back_inserter(zone));
-      if (zone.empty()) break;
-      std::string refused;
-      if (localNeckPass(evaluator, field, grid, iso, surface, minComponent, cells, zone, first,
-                        round + 1 == kNeckRounds, po, mesh, finish, r, refused,
-                        name + ": neck pass " + std::to_string(round + 1), progress)) {
+      std::string refused = "no cells beyond the earlier rounds'";
+      if (!zone.empty() && localNeckPass(evaluator, field, grid, iso, surface, minComponent, cells, zone, first,
+                                         round + 1 == kNeckRounds, po, mesh, finish, r, refused,
+                                         name + ": neck pass " + std::to_string(round + 1), progress)) {
         kept = true;
         replaced = cells;
         r.cells = cells.size();
