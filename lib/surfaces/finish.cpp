@@ -359,6 +359,7 @@ FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField
   const FieldGradientSampler sampler = gradientSampler(evaluator);
   const std::size_t n = meshes.size();
   FinishResult out;
+  if (n == 0) return out;
   out.meshes.resize(n);
   out.reports.resize(n);
   // One mesh: nothing in it depends on another mesh, so several run at once (each on its own host thread;

@@ -254,6 +254,8 @@ TEST_CASE("several meshes finished at once on the OpenCL device: the same meshes
     CHECK(b.reports[i].deviation.relativeMax <= 1e-3);
     CHECK(analyzeTopology(b.meshes[i]).watertight());
   }
+  // No mesh: nothing to do (and no division by the count).
+  CHECK(finishSurfaces(evaluator, field, {}, {}, cell, three).meshes.empty());
   // Cancelled before any mesh is taken: Cancelled, whatever the workers.
   struct Stop : Interrupter {
     bool wasInterrupted(int) override { return true; }
