@@ -53,8 +53,8 @@ struct SurfaceOptions {
   /// part's creases, where the field's level set itself is rounded) would refine thousands of cells for
   /// little gain (fandisk_50k: 3,439 and 9,575 cells, 6 s of fit became 189 s, the offset still 0.66% off).
   std::size_t neckPassMaxCells = 1500;
-  /// The neck pass first replaces only the faces around its cells (a slab extracted, the patch finished on
-  /// its own and joined by a band); when that is refused (the boundaries do not pair up, the result is not
+  /// The neck pass first replaces only the faces around its cells (the level set extracted again in boxes
+  /// around them, the patch finished on its own and joined by a band); when that is refused (the boundaries do not pair up, the result is not
   /// closed, crosses itself or is not closer) it extracts and finishes the whole level set again.
   bool localNeckPass = true;
 };

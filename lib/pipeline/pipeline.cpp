@@ -239,68 +239,7 @@ bool localNeckPassOnce(const FieldEvaluator& evaluator, const ImplicitField& fie
   // per cluster, kBoxMargin cells around it, overlapping boxes merged): the patch is taken from the inner
   // zone, well inside each box, so the boxes' own borders do not matter.
   const Mesh extracted = [&] {
-    const std::int64_t nx = grid.cells(0), ny = grid.cells(1);
-    const auto coords = [&](std::int64_t id) {
-      return std::array<int, 3>{static_cast<int>(id % nx), static_cast<int>((id / nx) % ny),
-                                static_cast<int>(id / (nx * ny))};
-    };
-    std::vector<std::array<int, 6>> boxes;  // lo xyz, hi xyz (inclusive)
-    std::vector<char> seen(outer.size(), 0);
-    for (std::size_t start = 0; start < outer.size(); ++start) {
-      if (seen[start]) continue;
-      std::array<int, 3> c0 = coords(outer[start]);
-      std::array<int, 6> b{c0[0], c0[1], c0[2], c0[0], c0[1], c0[2]};
-      std::vector<std::size_t> stack{start};
-      seen[start] = 1;
-      while (!stack.empty()) {
-        const std::array<int, 3> c = coords(outer[stack.back()]);
-        stack.pop_back();
-        for (int a = 0; a < 3; ++a) {
-          b[static_cast<std::size_t>(a)] = std::min(b[static_cast<std::size_t>(a)], c[static_cast<std::size_t>(a)]);
-          b[static_cast<std::size_t>(3 + a)] = std::max(b[static_cast<std::size_t>(3 + a)], c[static_cast<std::size_t>(a)]);
-        }
-        for (int dz = -1; dz <= 1; ++dz) {
-          for (int dy = -1; dy <= 1; ++dy) {
-            for (int dx = -1; dx <= 1; ++dx) {
-              const std::int64_t x = c[0] + dx, y = c[1] + dy, z = c[2] + dz;
-              if (x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= grid.cells(2)) continue;
-              const auto it = std::lower_bound(outer.begin(), outer.end(), x + nx * (y + ny * z));
-              if (it == outer.end() || *it != x + nx * (y + ny * z)) continue;
-              const auto k = static_cast<std::size_t>(it - outer.begin());
-              if (!seen[k]) {
-                seen[k] = 1;
-                stack.push_back(k);
-              }
-            }
-          }
-        }
-      }
-      for (int a = 0; a < 3; ++a) {
-        b[static_cast<std::size_t>(a)] = std::max(0, b[static_cast<std::size_t>(a)] - kBoxMargin);
-        b[static_cast<std::size_t>(3 + a)] = std::min(grid.cells(a) - 1, b[static_cast<std::size_t>(3 + a)] + kBoxMargin);
-      }
-      boxes.push_back(b);
-    }
-    for (bool merged = true; merged;) {  // overlapping boxes become their bounding box
-      merged = false;
-      for (std::size_t i = 0; i < boxes.size() && !merged; ++i) {
-        for (std::size_t j = i + 1; j < boxes.size() && !merged; ++j) {
-          bool overlap = true;
-          for (int a = 0; a < 3; ++a) {
-            overlap = overlap && boxes[i][static_cast<std::size_t>(a)] <= boxes[j][static_cast<std::size_t>(3 + a)] &&
-                      boxes[j][static_cast<std::size_t>(a)] <= boxes[i][static_cast<std::size_t>(3 + a)];
-          }
-          if (!overlap) continue;
-          for (int a = 0; a < 3; ++a) {
-            const auto lo = static_cast<std::size_t>(a), hi = static_cast<std::size_t>(3 + a);
-            boxes[i][lo] = std::min(boxes[i][lo], boxes[j][lo]);
-            boxes[i][hi] = std::max(boxes[i][hi], boxes[j][hi]);
-          }
-          boxes.erase(boxes.begin() + static_cast<std::ptrdiff_t>(j));
-          merged = true;
-        }
-      }
-    }
+    const std::vector<std::array<int, 6>> boxes = detail::zoneBoxes(grid, outer, kBoxMargin);
     if (boxes.size() > kMaxBoxes) {
       throw InvalidArgument(std::to_string(boxes.size()) + " separate zones (more than " + std::to_string(kMaxBoxes) + ")");
     }
@@ -452,15 +391,10 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
     // The cells of the points beyond half the limit (the neck's extent, so that one round usually covers
     // it) or, when those span too many cells, of the points beyond the limit, with the cells within
     // kNeckRadius of them.
-    const Eigen::Vector3d h = grid.cellSize();
     const auto cellsAround = [&](const std::vector<Eigen::Vector3d>& points) {
       std::vector<std::array<int, 3>> out = cells;
       for (const Eigen::Vector3d& p : points) {
-        std::array<int, 3> c{};
-        for (int a = 0; a < 3; ++a) {
-          c[static_cast<std::size_t>(a)] =
-              std::clamp(static_cast<int>(std::floor((p(a) - grid.box.min()(a)) / h(a))), 0, grid.cells(a) - 1);
-        }
+        const std::array<int, 3> c = detail::cellOf(grid, p);
         for (int dz = -kNeckRadius; dz <= kNeckRadius; ++dz) {
           for (int dy = -kNeckRadius; dy <= kNeckRadius; ++dy) {
             for (int dx = -kNeckRadius; dx <= kNeckRadius; ++dx) {

@@ -156,6 +156,19 @@ LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const M
     ids[static_cast<std::size_t>(picked)] =
         total == all ? picked : static_cast<Eigen::Index>((static_cast<long double>(picked) * all) / total);
   }
+  // Where a measured sample (id) lies beyond the limit or half of it, and the maximum.
+  const auto note = [&](double v, Eigen::Index id) {
+    if (v > d.limit && d.aboveLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
+      d.aboveLimitAt.push_back(point(id).transpose());
+    }
+    if (v > 0.5 * d.limit && d.nearLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
+      d.nearLimitAt.push_back(point(id).transpose());
+    }
+    if (v > d.max) {
+      d.max = v;
+      d.maxAt = point(id).transpose();
+    }
+  };
   const std::vector<double> e = measure(ids);
   double sum = 0.0, sum2 = 0.0;
   std::vector<double> kept;
@@ -170,16 +183,7 @@ LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const M
     sum += v;
     sum2 += v * v;
     d.aboveLimit += v > d.limit ? 1 : 0;
-    if (v > d.limit && d.aboveLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
-      d.aboveLimitAt.push_back(point(ids[s]).transpose());
-    }
-    if (v > 0.5 * d.limit && d.nearLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
-      d.nearLimitAt.push_back(point(ids[s]).transpose());
-    }
-    if (v > d.max) {
-      d.max = v;
-      d.maxAt = point(ids[s]).transpose();
-    }
+    note(v, ids[s]);
   }
   d.samples = kept.size();
   if (d.samples > 0) {
@@ -267,16 +271,7 @@ LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const M
         const std::vector<double> le = measure(batch);
         std::vector<std::pair<double, Eigen::Index>> worse;
         for (std::size_t i = 0; i < le.size(); ++i) {
-          if (le[i] > d.limit && d.aboveLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
-            d.aboveLimitAt.push_back(point(batch[i]).transpose());
-          }
-          if (le[i] > 0.5 * d.limit && d.nearLimitAt.size() < LevelSetDeviation::kAboveLimitAt) {
-            d.nearLimitAt.push_back(point(batch[i]).transpose());
-          }
-          if (le[i] > d.max) {
-            d.max = le[i];
-            d.maxAt = point(batch[i]).transpose();
-          }
+          note(le[i], batch[i]);
           if (le[i] > 0.25 * d.limit) worse.emplace_back(le[i], batch[i]);
         }
         std::sort(worse.begin(), worse.end(), [](const auto& x, const auto& y) { return x.first > y.first; });
@@ -414,9 +409,15 @@ FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField
   // object need not be thread-safe), before it takes each of its meshes.
   std::atomic<std::size_t> next{0};
   std::atomic<bool> stop{false};
+  bool cancelled = false;
   std::vector<std::exception_ptr> errors(n);
-  const auto work = [&] {
+  const auto work = [&](bool polls) {
     for (;;) {
+      if (polls && interrupter && interrupter->wasInterrupted(static_cast<int>(100 * std::min(next.load(), n) / n))) {
+        cancelled = true;
+        stop.store(true);
+        return;
+      }
       const std::size_t i = next.fetch_add(1);
       if (i >= n || stop.load()) return;
       try {
@@ -427,31 +428,14 @@ FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField
       }
     }
   };
-  bool cancelled = false;
   {
     std::vector<std::thread> helpers;
     try {
-      for (std::size_t w = 1; w < workers; ++w) helpers.emplace_back(work);
+      for (std::size_t w = 1; w < workers; ++w) helpers.emplace_back(work, false);
     } catch (const std::system_error&) {
       // no thread to spare: the remaining meshes are finished here
     }
-    for (;;) {
-      const std::size_t taken = next.load();
-      if (interrupter && interrupter->wasInterrupted(static_cast<int>(100 * std::min(taken, n) / n))) {
-        cancelled = true;
-        stop.store(true);
-        break;
-      }
-      if (taken >= n || stop.load()) break;
-      std::size_t expected = taken;
-      if (!next.compare_exchange_strong(expected, taken + 1)) continue;  // a helper took it first
-      try {
-        finishOne(taken);
-      } catch (...) {
-        errors[taken] = std::current_exception();
-        stop.store(true);
-      }
-    }
+    work(true);
     for (std::thread& h : helpers) h.join();
   }
   for (const std::exception_ptr& e : errors) {

@@ -23,13 +23,8 @@ std::uint64_t edgeKey(Index a, Index b) {
 
 /// The linear id of the grid cell holding p (clamped to the grid).
 std::int64_t cellId(const GridSpec& grid, const Vec& p) {
-  const Vec h = grid.cellSize();
-  std::int64_t c[3];
-  for (int a = 0; a < 3; ++a) {
-    const double x = std::floor((p(a) - grid.box.min()(a)) / h(a));
-    c[a] = std::clamp<std::int64_t>(std::isfinite(x) ? static_cast<std::int64_t>(x) : 0, 0, grid.cells(a) - 1);
-  }
-  return c[0] + std::int64_t{grid.cells(0)} * (c[1] + std::int64_t{grid.cells(1)} * c[2]);
+  const std::array<int, 3> c = cellOf(grid, p);
+  return c[0] + std::int64_t{grid.cells(0)} * (c[1] + std::int64_t{grid.cells(1)} * std::int64_t{c[2]});
 }
 
 Vec centroid(const Mesh& m, Eigen::Index f) {
@@ -102,6 +97,80 @@ std::vector<std::vector<Index>> loopsAlong(const Mesh& m, const std::vector<Eige
 }
 
 }  // namespace
+
+std::array<int, 3> cellOf(const GridSpec& grid, const Eigen::Vector3d& p) {
+  const Eigen::Vector3d h = grid.cellSize();
+  std::array<int, 3> c{};
+  for (int a = 0; a < 3; ++a) {
+    const double x = std::floor((p(a) - grid.box.min()(a)) / h(a));
+    c[static_cast<std::size_t>(a)] =
+        std::isfinite(x) ? static_cast<int>(std::clamp<double>(x, 0.0, grid.cells(a) - 1.0)) : 0;
+  }
+  return c;
+}
+
+std::vector<std::array<int, 6>> zoneBoxes(const GridSpec& grid, const std::vector<std::int64_t>& cells, int margin) {
+  const std::int64_t nx = grid.cells(0), ny = grid.cells(1);
+  const auto coords = [&](std::int64_t id) {
+    return std::array<int, 3>{static_cast<int>(id % nx), static_cast<int>((id / nx) % ny),
+                              static_cast<int>(id / (nx * ny))};
+  };
+  std::vector<std::array<int, 6>> boxes;
+  std::vector<char> seen(cells.size(), 0);
+  for (std::size_t start = 0; start < cells.size(); ++start) {
+    if (seen[start]) continue;
+    const std::array<int, 3> c0 = coords(cells[start]);
+    std::array<int, 6> b{c0[0], c0[1], c0[2], c0[0], c0[1], c0[2]};
+    std::vector<std::size_t> stack{start};
+    seen[start] = 1;
+    while (!stack.empty()) {
+      const std::array<int, 3> c = coords(cells[stack.back()]);
+      stack.pop_back();
+      for (std::size_t a = 0; a < 3; ++a) {
+        b[a] = std::min(b[a], c[a]);
+        b[3 + a] = std::max(b[3 + a], c[a]);
+      }
+      for (int dz = -1; dz <= 1; ++dz) {
+        for (int dy = -1; dy <= 1; ++dy) {
+          for (int dx = -1; dx <= 1; ++dx) {
+            const std::int64_t x = c[0] + dx, y = c[1] + dy, z = c[2] + dz;
+            if (x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= grid.cells(2)) continue;
+            const std::int64_t id = x + nx * (y + ny * z);
+            const auto it = std::lower_bound(cells.begin(), cells.end(), id);
+            if (it == cells.end() || *it != id) continue;
+            const auto k = static_cast<std::size_t>(it - cells.begin());
+            if (!seen[k]) {
+              seen[k] = 1;
+              stack.push_back(k);
+            }
+          }
+        }
+      }
+    }
+    for (std::size_t a = 0; a < 3; ++a) {
+      b[a] = std::max(0, b[a] - margin);
+      b[3 + a] = std::min(grid.cells(static_cast<Eigen::Index>(a)) - 1, b[3 + a] + margin);
+    }
+    boxes.push_back(b);
+  }
+  for (bool merged = true; merged;) {  // overlapping boxes become their bounding box
+    merged = false;
+    for (std::size_t i = 0; i < boxes.size() && !merged; ++i) {
+      for (std::size_t j = i + 1; j < boxes.size() && !merged; ++j) {
+        bool overlap = true;
+        for (std::size_t a = 0; a < 3; ++a) overlap = overlap && boxes[i][a] <= boxes[j][3 + a] && boxes[j][a] <= boxes[i][3 + a];
+        if (!overlap) continue;
+        for (std::size_t a = 0; a < 3; ++a) {
+          boxes[i][a] = std::min(boxes[i][a], boxes[j][a]);
+          boxes[i][3 + a] = std::max(boxes[i][3 + a], boxes[j][3 + a]);
+        }
+        boxes.erase(boxes.begin() + static_cast<std::ptrdiff_t>(j));
+        merged = true;
+      }
+    }
+  }
+  return boxes;
+}
 
 std::vector<std::int64_t> dilatedCells(const GridSpec& grid, const std::vector<std::array<int, 3>>& cells, int radius) {
   std::vector<std::int64_t> out;

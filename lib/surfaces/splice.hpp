@@ -37,6 +37,14 @@ FieldGradientSampler fieldGradientSampler(const FieldEvaluator& evaluator);
 CleanOptions finishCleanOptions(const MeshFinishOptions& options, double cell);
 ProjectOptions finishProjectOptions(const MeshFinishOptions& options, double side, double cell);
 
+/// The grid cell holding p (clamped to the grid).
+std::array<int, 3> cellOf(const GridSpec& grid, const Eigen::Vector3d& p);
+
+/// Boxes of grid cells (lo x, y, z, then hi x, y, z, inclusive) around the 26-connected clusters of
+/// `cells` (sorted linear ids), `margin` cells wider on each side within the grid, overlapping boxes merged
+/// into their bounding box: where the neck pass extracts its patch again.
+std::vector<std::array<int, 6>> zoneBoxes(const GridSpec& grid, const std::vector<std::int64_t>& cells, int margin);
+
 /// Grid cells within `radius` (Chebyshev) of `cells`, in the grid, as sorted linear ids
 /// (x + nx·(y + ny·z)).
 std::vector<std::int64_t> dilatedCells(const GridSpec& grid, const std::vector<std::array<int, 3>>& cells, int radius);

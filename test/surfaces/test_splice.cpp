@@ -40,14 +40,6 @@ double zeroRadius(const ImplicitField& f) {
   return 0.5 * (lo + hi);
 }
 
-std::array<int, 3> cellOf(const GridSpec& grid, const Eigen::Vector3d& p) {
-  std::array<int, 3> c{};
-  for (int a = 0; a < 3; ++a) {
-    c[static_cast<std::size_t>(a)] = static_cast<int>(std::floor((p(a) - grid.box.min()(a)) / grid.cellSize()(a)));
-  }
-  return c;
-}
-
 }  // namespace
 
 TEST_SUITE("surfaces") {
@@ -65,7 +57,7 @@ TEST_CASE("the neck pass's splice: a zone of a finished sphere replaced by a fin
   REQUIRE(analyzeTopology(mesh).watertight());
 
   // The cells around a point of the sphere refined one level more, the level set extracted again.
-  const std::array<int, 3> centre = cellOf(grid, radius * Eigen::Vector3d(1.0, 0.3, 0.2).normalized());
+  const std::array<int, 3> centre = detail::cellOf(grid, radius * Eigen::Vector3d(1.0, 0.3, 0.2).normalized());
   std::vector<std::array<int, 3>> cells;
   for (int dz = -2; dz <= 2; ++dz) {
     for (int dy = -2; dy <= 2; ++dy) {
@@ -143,6 +135,23 @@ TEST_CASE("the neck pass's splice: a zone of a finished sphere replaced by a fin
                                                         detail::finishProjectOptions(options.finish, side, cell));
   CHECK_FALSE(empty.ok);
   CHECK(empty.why == "no face of the mesh in the zone");
+}
+
+TEST_CASE("the neck pass's boxes: one per cluster of cells, a margin around, overlapping ones merged") {
+  const GridSpec grid = GridSpec::fromCellSize(Eigen::AlignedBox3d(Eigen::Vector3d::Zero(), Eigen::Vector3d::Constant(1.0)), 0.05);
+  REQUIRE(grid.cells(0) == 20);
+  const auto ids = [&](std::vector<std::array<int, 3>> cells) { return detail::dilatedCells(grid, cells, 0); };
+  // Two clusters far apart: two boxes, each its cluster grown by the margin (clipped at the grid).
+  const std::vector<std::array<int, 6>> two = detail::zoneBoxes(grid, ids({{1, 1, 1}, {2, 1, 1}, {15, 15, 15}}), 2);
+  REQUIRE(two.size() == 2);
+  CHECK(two[0] == std::array<int, 6>{0, 0, 0, 4, 3, 3});
+  CHECK(two[1] == std::array<int, 6>{13, 13, 13, 17, 17, 17});
+  // Diagonal neighbours are one cluster; clusters whose grown boxes overlap become one box.
+  CHECK(detail::zoneBoxes(grid, ids({{5, 5, 5}, {6, 6, 6}}), 1).size() == 1);
+  const std::vector<std::array<int, 6>> merged = detail::zoneBoxes(grid, ids({{5, 5, 5}, {9, 5, 5}}), 2);
+  REQUIRE(merged.size() == 1);
+  CHECK(merged[0] == std::array<int, 6>{3, 3, 3, 11, 7, 7});
+  CHECK(detail::cellOf(grid, Eigen::Vector3d(0.07, -1.0, 2.0)) == std::array<int, 3>{1, 0, 19});
 }
 
 }  // TEST_SUITE
