@@ -220,7 +220,7 @@ constexpr int kNeckRadius = 2;
 constexpr int kSpliceInner = 4;
 constexpr int kSpliceGap = 1;
 /// Cells around each cluster of the replaced zone in the box extracted again.
-constexpr int kBoxMargin = 3;
+constexpr int kBoxMargin = 1;
 /// Boxes (separate clusters of the zone) at most; more leave the round to the whole-mesh pass.
 constexpr std::size_t kMaxBoxes = 64;
 

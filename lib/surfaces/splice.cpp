@@ -67,26 +67,27 @@ std::vector<std::vector<Index>> loopsOf(const std::unordered_map<Index, Index>& 
   return loops;
 }
 
-/// The directed edges of `faces` of `m`.
-std::unordered_set<std::uint64_t> directedEdges(const Mesh& m, const std::vector<Eigen::Index>& faces) {
-  std::unordered_set<std::uint64_t> out;
+/// The directed edges of `faces` of `m`, as sorted keys.
+std::vector<std::uint64_t> directedEdges(const Mesh& m, const std::vector<Eigen::Index>& faces) {
+  std::vector<std::uint64_t> out;
   out.reserve(3 * faces.size());
   for (const Eigen::Index f : faces) {
-    for (int k = 0; k < 3; ++k) out.insert(edgeKey(m.faces(f, k), m.faces(f, (k + 1) % 3)));
+    for (int k = 0; k < 3; ++k) out.push_back(edgeKey(m.faces(f, k), m.faces(f, (k + 1) % 3)));
   }
+  std::sort(out.begin(), out.end());
   return out;
 }
 
 /// The loops of the edges a → b of `faces` of `m` whose reverse b → a is in `twins` (`twinIn`) or is not
 /// (!`twinIn`), or empty with `why` set when a vertex starts two of them or they do not close.
 std::vector<std::vector<Index>> loopsAlong(const Mesh& m, const std::vector<Eigen::Index>& faces,
-                                           const std::unordered_set<std::uint64_t>& twins, bool twinIn,
+                                           const std::vector<std::uint64_t>& twins, bool twinIn,
                                            std::string& why) {
   std::unordered_map<Index, Index> next;
   for (const Eigen::Index f : faces) {
     for (int k = 0; k < 3; ++k) {
       const Index a = m.faces(f, k), b = m.faces(f, (k + 1) % 3);
-      if ((twins.count(edgeKey(b, a)) != 0) != twinIn) continue;
+      if (std::binary_search(twins.begin(), twins.end(), edgeKey(b, a)) != twinIn) continue;
       if (!next.emplace(a, b).second) {
         why = "a boundary vertex starts two boundary edges";
         return {};
@@ -212,9 +213,23 @@ SpliceResult spliceZone(const Mesh& finished, const Mesh& extracted, const GridS
     return r;
   }
   // The hole's loops, as the kept faces run them (each edge of a kept face whose twin was removed).
-  // (The kept faces' own boundary would also give the far side of their ring around the hole.)
+  // (The kept faces' own boundary would also give the far side of their ring around the hole.) Only the
+  // kept faces with a corner on a removed face can have such an edge.
+  std::vector<Eigen::Index> rim;
+  {
+    std::vector<char> onRemoved(static_cast<std::size_t>(finished.vertices.rows()), 0);
+    for (const Eigen::Index f : removed) {
+      for (int k = 0; k < 3; ++k) onRemoved[static_cast<std::size_t>(finished.faces(f, k))] = 1;
+    }
+    for (const Eigen::Index f : kept) {
+      if (onRemoved[static_cast<std::size_t>(finished.faces(f, 0))] || onRemoved[static_cast<std::size_t>(finished.faces(f, 1))] ||
+          onRemoved[static_cast<std::size_t>(finished.faces(f, 2))]) {
+        rim.push_back(f);
+      }
+    }
+  }
   const std::vector<std::vector<Index>> holes =
-      loopsAlong(finished, kept, directedEdges(finished, removed), true, r.why);
+      loopsAlong(finished, rim, directedEdges(finished, removed), true, r.why);
   if (!r.why.empty()) {
     r.why = "the hole: " + r.why;
     return r;
