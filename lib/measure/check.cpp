@@ -1,9 +1,9 @@
 // checkMesh: topology (analyzeTopology), boundary loops, genus, signed volume and intersecting
-// triangle pairs. Candidate pairs come from box queries on the BVH; each pair is classified by the
-// vertices it shares (vertices at identical positions are welded for this): none → a triangle-triangle
-// test (plane-side rejection, then overlap of the two intervals on the planes' common line, or a 2D test
-// for coplanar triangles); one → whether the triangles extend beyond the shared vertex in a common
-// direction; an edge → coplanar fold-over; all three → a duplicate face.
+// triangle pairs. Candidate pairs come from box queries on a lean tree of float boxes; each pair is
+// classified by the vertices it shares (vertices at identical positions are welded for this): none → a
+// triangle-triangle test (plane-side rejection, then overlap of the two intervals on the planes' common
+// line, or a 2D test for coplanar triangles); one → whether the triangles extend beyond the shared vertex
+// in a common direction; an edge → coplanar fold-over; all three → a duplicate face.
 #include <algorithm>
 #include <array>
 #include <cstddef>
@@ -299,6 +299,189 @@ bool pairIntersect(const Tri& s, const Tri& t, double tol) {
   return true;  // the same three vertices: a duplicate face
 }
 
+/// The pair search's tree of boxes over the tested triangles: object-median splits along the longest axis
+/// of the centroids' extent (as TriangleBvh), at most kBoxLeaf triangles a leaf, nodes depth-first with the
+/// left child next to its parent, boxes in float rounded outward (a superset of the double boxes' overlaps;
+/// each candidate is then tested on its exact double box). About 80 bytes a triangle where TriangleBvh,
+/// built for closest points (cones, corners in two orders), touches some 400 with its temporaries: on a
+/// large mesh the first touch of fresh memory costs as much as the build (fandisk_550k's 3.9M-triangle
+/// zero mesh: 4.3 s for the tree inside the fit, 1.8 s in a process that reuses its memory).
+class BoxTree {
+ public:
+  BoxTree(const std::vector<Tri>& tris, const std::vector<std::int64_t>& tested) : tris_(tris) {
+    const std::size_t m = tested.size();
+    if (m >= std::numeric_limits<std::uint32_t>::max() / 2) {
+      throw InvalidArgument("self-intersections: too many faces (" + std::to_string(m) + ")");
+    }
+    std::vector<Box> box(m);
+    std::vector<float> centre(3 * m);
+    for (std::size_t i = 0; i < m; ++i) {
+      const double* p = tris[static_cast<std::size_t>(tested[i])].p;
+      for (int c = 0; c < 3; ++c) {
+        const double lo = std::min({p[c], p[3 + c], p[6 + c]}), hi = std::max({p[c], p[3 + c], p[6 + c]});
+        box[i].lo[c] = down(lo);
+        box[i].hi[c] = up(hi);
+        centre[3 * i + static_cast<std::size_t>(c)] = static_cast<float>(0.5 * (lo + hi));
+      }
+    }
+    std::vector<std::uint32_t> order(m);
+    std::iota(order.begin(), order.end(), 0U);
+    nodes_.resize(nodeCount(m));
+    measure_detail::ParallelErrors errors;
+    Builder b{box.data(), centre.data(), order.data(), nodes_.data()};
+    if (m >= kBoxParallel) {
+#pragma omp parallel default(none) shared(b, m, errors)
+#pragma omp single
+      errors.run([&] { b.build(0, 0, m, errors); });
+      errors.rethrow();
+    } else {
+      b.build(0, 0, m, errors);
+      errors.rethrow();
+    }
+    leafBox_.resize(m);
+    face_.resize(m);
+    for (std::size_t k = 0; k < m; ++k) {
+      leafBox_[k] = box[order[k]];
+      face_[k] = tested[order[k]];
+    }
+  }
+
+  /// Appends the faces whose double bounding boxes meet [lo, hi], at most `limit`: false when it stopped
+  /// there with faces left unvisited.
+  bool overlapping(const double lo[3], const double hi[3], std::vector<std::int64_t>& out, std::size_t limit) const {
+    const float flo[3] = {down(lo[0]), down(lo[1]), down(lo[2])};
+    const float fhi[3] = {up(hi[0]), up(hi[1]), up(hi[2])};
+    std::size_t room = limit;
+    std::uint32_t stack[128];
+    int sp = 0;
+    stack[sp++] = 0;
+    while (sp > 0) {
+      const std::uint32_t self = stack[--sp];
+      const Node& n = nodes_[self];
+      if (!meets(n.box, flo, fhi)) continue;
+      if (n.count == 0) {
+        stack[sp++] = n.index;
+        stack[sp++] = self + 1;
+        continue;
+      }
+      for (std::size_t k = n.index; k < std::size_t{n.index} + n.count; ++k) {
+        if (!meets(leafBox_[k], flo, fhi)) continue;
+        const double* t = tris_[static_cast<std::size_t>(face_[k])].p;
+        bool miss = false;
+        for (int c = 0; c < 3; ++c) {
+          miss = miss || std::min({t[c], t[3 + c], t[6 + c]}) > hi[c] || std::max({t[c], t[3 + c], t[6 + c]}) < lo[c];
+        }
+        if (miss) continue;
+        if (room == 0) return false;
+        out.push_back(face_[k]);
+        --room;
+      }
+    }
+    return true;
+  }
+
+ private:
+  static constexpr std::size_t kBoxLeaf = 4;
+  static constexpr std::size_t kBoxParallel = 16384;  // subtrees at least this large become OpenMP tasks
+  struct Box {
+    float lo[3], hi[3];
+  };
+  struct Node {
+    Box box;
+    std::uint32_t index;  // leaf: first slot; inner: right child (left = this + 1)
+    std::uint32_t count;  // leaf: faces; inner: 0
+  };
+  static float down(double x) {
+    float f = static_cast<float>(x);
+    if (static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+    return f;
+  }
+  static float up(double x) {
+    float f = static_cast<float>(x);
+    if (static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+    return f;
+  }
+  static bool meets(const Box& b, const float lo[3], const float hi[3]) {
+    return !(b.lo[0] > hi[0] || b.hi[0] < lo[0] || b.lo[1] > hi[1] || b.hi[1] < lo[1] || b.lo[2] > hi[2] ||
+             b.hi[2] < lo[2]);
+  }
+  static std::size_t nodeCount(std::size_t n) {
+    // Median splits: the two halves of n are n/2 and n - n/2, so each level has at most two distinct sizes.
+    std::vector<std::pair<std::size_t, std::size_t>> memo;  // (size, nodes)
+    const auto count = [&memo](std::size_t k, const auto& self) -> std::size_t {
+      if (k <= kBoxLeaf) return 1;
+      for (const auto& [size, nodes] : memo) {
+        if (size == k) return nodes;
+      }
+      const std::size_t c = 1 + self(k / 2, self) + self(k - k / 2, self);
+      memo.emplace_back(k, c);
+      return c;
+    };
+    return count(n, count);
+  }
+  struct Builder {
+    const Box* box;
+    const float* centre;
+    std::uint32_t* order;
+    Node* nodes;
+    void build(std::size_t node, std::size_t begin, std::size_t end, measure_detail::ParallelErrors& errors) {
+      Node& n = nodes[node];
+      float clo[3], chi[3];
+      for (int c = 0; c < 3; ++c) {
+        n.box.lo[c] = clo[c] = std::numeric_limits<float>::infinity();
+        n.box.hi[c] = chi[c] = -std::numeric_limits<float>::infinity();
+      }
+      Box b = n.box;
+      for (std::size_t i = begin; i < end; ++i) {
+        const Box& x = box[order[i]];
+        const float* m = centre + 3 * std::size_t{order[i]};
+        for (int c = 0; c < 3; ++c) {
+          b.lo[c] = std::min(b.lo[c], x.lo[c]);
+          b.hi[c] = std::max(b.hi[c], x.hi[c]);
+          clo[c] = std::min(clo[c], m[c]);
+          chi[c] = std::max(chi[c], m[c]);
+        }
+      }
+      n.box = b;
+      const std::size_t count = end - begin;
+      if (count <= kBoxLeaf) {
+        n.index = static_cast<std::uint32_t>(begin);
+        n.count = static_cast<std::uint32_t>(count);
+        return;
+      }
+      int axis = 0;
+      for (int c = 1; c < 3; ++c) {
+        if (chi[c] - clo[c] > chi[axis] - clo[axis]) axis = c;
+      }
+      const std::size_t mid = begin + count / 2;
+      const float* cen = centre;
+      std::nth_element(order + begin, order + mid, order + end, [cen, axis](std::uint32_t x, std::uint32_t y) {
+        const float cx = cen[3 * std::size_t{x} + static_cast<std::size_t>(axis)];
+        const float cy = cen[3 * std::size_t{y} + static_cast<std::size_t>(axis)];
+        return cx != cy ? cx < cy : x < y;
+      });
+      const std::size_t left = node + 1;
+      const std::size_t right = left + nodeCount(mid - begin);
+      n.index = static_cast<std::uint32_t>(right);
+      n.count = 0;
+      if (count >= kBoxParallel) {
+#pragma omp task default(none) firstprivate(left, begin, mid) shared(errors)
+        errors.run([&] { build(left, begin, mid, errors); });
+#pragma omp task default(none) firstprivate(right, mid, end) shared(errors)
+        errors.run([&] { build(right, mid, end, errors); });
+#pragma omp taskwait
+      } else {
+        build(left, begin, mid, errors);
+        build(right, mid, end, errors);
+      }
+    }
+  };
+  const std::vector<Tri>& tris_;
+  std::vector<Node> nodes_;
+  std::vector<Box> leafBox_;           // leaf order
+  std::vector<std::int64_t> face_;     // leaf order -> face
+};
+
 SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& options,
                                       const std::vector<std::int64_t>* faces);
 
@@ -308,7 +491,7 @@ MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
   MeshCheck r;
   r.validation = validateMesh(mesh, "mesh");
   {
-    // The topology's edge table (three 24-byte edges a face), the tree (about 120 bytes a face), the quality
+    // The topology's edge table (three 24-byte edges a face), the pair search (about 210 bytes a face), the quality
     // and per-face tables; the pair search keeps only counts (bounded by candidatePairBudget).
     const double faces = static_cast<double>(mesh.faces.rows());
     std::ostringstream what;
@@ -441,7 +624,8 @@ SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& opti
     }
   }
   if (nf == 0 || (faces && faces->empty())) return r;
-  requireMemory(options.limits, "self-intersection test", 150.0 * static_cast<double>(nf),
+  // The prepared triangles (128 bytes a face) and the box tree (about 80).
+  requireMemory(options.limits, "self-intersection test", 210.0 * static_cast<double>(nf),
                 "the mesh's " + std::to_string(nf) + " faces", "check a simplified mesh (mesh --max-triangles)");
   const std::vector<std::int32_t> welded = weldedIds(mesh);
   std::vector<Tri> tris(nf);
@@ -475,13 +659,7 @@ SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& opti
   }
   if (faces) tested = nearAsked(tris, asked, tested);
   if (tested.empty()) return r;
-  Mesh testedMesh;
-  testedMesh.vertices = mesh.vertices;
-  testedMesh.faces.resize(static_cast<Eigen::Index>(tested.size()), 3);
-  for (std::size_t k = 0; k < tested.size(); ++k) {
-    testedMesh.faces.row(static_cast<Eigen::Index>(k)) = mesh.faces.row(static_cast<Eigen::Index>(tested[k]));
-  }
-  const TriangleBvh tree(testedMesh);
+  const BoxTree tree(tris, tested);
   // Each face examines at most `perFace` candidates (a deterministic prefix in tree order), so the work is
   // at most max(1024·#F, budget) pair tests. Pairs are counted, not stored: each thread keeps only its
   // smallest `listed` pairs for the examples.
@@ -511,15 +689,14 @@ SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& opti
       const Tri& s = tris[static_cast<std::size_t>(ii)];
       if (s.skip || (subset && !asked[static_cast<std::size_t>(ii)])) continue;
       errors.run([&] {
-        Eigen::Vector3d lo, hi;
+        double lo[3], hi[3];
         for (int c = 0; c < 3; ++c) {
           lo[c] = std::min({s.p[c], s.p[3 + c], s.p[6 + c]}) - s.tol;
           hi[c] = std::max({s.p[c], s.p[3 + c], s.p[6 + c]}) + s.tol;
         }
         candidates.clear();
         if (!tree.overlapping(lo, hi, candidates, perFace)) complete = false;
-        for (const std::int64_t k : candidates) {
-          const std::int64_t j = tested[static_cast<std::size_t>(k)];
+        for (const std::int64_t j : candidates) {
           if (j == ii) continue;
           const Tri& t = tris[static_cast<std::size_t>(j)];
           // The triangle with the larger tolerance (its box query is the wider one) owns the pair; with a
