@@ -536,39 +536,47 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
   report.boxGrowths = first.boxGrowths;
   report.touchesBoundary = first.touchesBoundary;
 
-  // Every fit checks itself: zero-level components without input points and offset components away from
-  // |delta| are listed; components below the minimum area fractions are dropped first.
-  progress.start("self-check");
-  report.selfCheck = cleanAndSelfCheck(meshes, isos, checkPoints, options.selfCheck);
-  logSelfCheck(report.selfCheck, progress);
-  progress.end();
+  // Components below the minimum area fractions are dropped before the finishing (cleanAndSelfCheck's
+  // first half); the check itself runs once, on the meshes as written (below).
+  t = Clock::now();
+  const auto minAreaOf = [&](std::size_t i) {
+    return i == 0 ? options.selfCheck.minAreaFraction
+                  : std::max(options.selfCheck.minAreaFraction, options.selfCheck.minOffsetAreaFraction);
+  };
+  std::vector<DroppedComponents> dropped(meshes.size());
+  for (std::size_t i = 0; i < meshes.size(); ++i) {
+    if (!(minAreaOf(i) > 0.0)) continue;
+    DropResult d = dropSmallComponents(meshes[i], minAreaOf(i));
+    meshes[i] = std::move(d.mesh);
+    dropped[i] = d.dropped;
+  }
+  const double dropSeconds = secondsSince(t);
 
   // Cleaning, simplification when asked, and every mesh's deviation from its level set.
   t = Clock::now();
   std::vector<MeshFinishReport> finished =
       finishMeshes(device, result.fields, evaluator.get(), meshes, isos, options.separate,
                    first.grid.cellSize().maxCoeff(), options.surface.finish, precision, progress);
-  // The neck pass (duplex mode: one field, one grid), then the self-check again on the meshes it replaced.
+  // The neck pass (duplex mode: one field, one grid).
   if (!options.separate && evaluator) {
-    bool replaced = false;
     for (std::size_t i = 0; i < meshes.size(); ++i) {
-      const double minArea = i == 0 ? options.selfCheck.minAreaFraction
-                                    : std::max(options.selfCheck.minAreaFraction, options.selfCheck.minOffsetAreaFraction);
-      replaced = neckPass(*evaluator, result.fields[0], report.grid, isos[i], surface, minArea, meshes[i], finished[i],
-                          surfaceName(static_cast<int>(i)), progress) || replaced;
-    }
-    if (replaced) {
-      SelfCheckReport again = selfCheck(meshes, isos, checkPoints, options.selfCheck);
-      for (std::size_t i = 0; i < again.surfaces.size() && i < report.selfCheck.surfaces.size(); ++i) {
-        again.surfaces[i].dropped = report.selfCheck.surfaces[i].dropped;
-      }
-      again.minAreaFraction = report.selfCheck.minAreaFraction;
-      again.minOffsetAreaFraction = report.selfCheck.minOffsetAreaFraction;
-      again.seconds += report.selfCheck.seconds;
-      report.selfCheck = std::move(again);
+      neckPass(*evaluator, result.fields[0], report.grid, isos[i], surface, minAreaOf(i), meshes[i], finished[i],
+               surfaceName(static_cast<int>(i)), progress);
     }
   }
   report.secondsFinish = secondsSince(t);
+
+  // Every fit checks its finished meshes: zero-level components without input points and offset components
+  // away from |delta| are listed. (Checking the extraction's meshes before the finishing, as the first
+  // version did, needed a second check whenever the neck pass replaced a mesh, and tested what is not written.)
+  progress.start("self-check");
+  report.selfCheck = selfCheck(meshes, isos, checkPoints, options.selfCheck);
+  for (std::size_t i = 0; i < report.selfCheck.surfaces.size(); ++i) report.selfCheck.surfaces[i].dropped = dropped[i];
+  report.selfCheck.minAreaFraction = options.selfCheck.minAreaFraction;
+  report.selfCheck.minOffsetAreaFraction = options.selfCheck.minOffsetAreaFraction;
+  report.selfCheck.seconds += dropSeconds;
+  logSelfCheck(report.selfCheck, progress);
+  progress.end();
 
   for (std::size_t i = 0; i < meshes.size(); ++i) {
     PipelineSurface s;
