@@ -39,6 +39,11 @@ struct EvaluatorImpl {
     std::size_t capacity = 0, uploaded = 0;
   };
   DeviceArray paramsBuf, dimsBuf, cellStartBuf, centresBuf;
+  /// The query and result buffers of evaluateRaw, kept between calls (used under the device's launch
+  /// mutex): a new pair per chunk cost the driver fresh pages every time (PoCL allocates a buffer's host
+  /// memory when it is first used and frees it with the buffer).
+  mutable cl::Buffer queryBuf, resultBuf;
+  mutable std::size_t queryBytes = 0, resultBytes = 0;
 
   explicit EvaluatorImpl(const Device& d) : device(d) {}
 };
@@ -118,15 +123,6 @@ void evalReference(const detail::EvaluatorImpl& e, const std::vector<T>& params,
   }
 }
 
-template <typename T>
-cl::Buffer uploadArray(const Device& device, const std::vector<T>& data, const std::string& what) {
-  cl::Buffer b = detail::createBuffer(device, std::max<std::size_t>(data.size(), 1) * sizeof(T), what);
-  if (!data.empty()) {
-    DUPLEXFIT_CL_CHECK(device.impl()->queue().enqueueWriteBuffer(b, CL_TRUE, 0, data.size() * sizeof(T), data.data()));
-  }
-  return b;
-}
-
 // Evaluates normalised queries (#Q×3) into a #Q×k row-major array of normalised results.
 std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u, int k) {
   const auto nq = static_cast<std::size_t>(u.rows());
@@ -149,8 +145,20 @@ std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u,
       } else {
         auto& impl = *e.device.impl();
         const std::lock_guard<std::mutex> lock(impl.launchMutex());
-        const cl::Buffer qb = uploadArray(e.device, q, "field query points");
-        const cl::Buffer ob = detail::createBuffer(e.device, out.size() * sizeof(T), "field evaluation results");
+        const std::size_t qBytes = q.size() * sizeof(T), oBytes = out.size() * sizeof(T);
+        if (e.queryBytes < qBytes) {
+          e.queryBuf = cl::Buffer();
+          e.queryBuf = detail::createBuffer(e.device, qBytes, "field query points");
+          e.queryBytes = qBytes;
+        }
+        if (e.resultBytes < oBytes) {
+          e.resultBuf = cl::Buffer();
+          e.resultBuf = detail::createBuffer(e.device, oBytes, "field evaluation results");
+          e.resultBytes = oBytes;
+        }
+        const cl::Buffer& qb = e.queryBuf;
+        const cl::Buffer& ob = e.resultBuf;
+        DUPLEXFIT_CL_CHECK(impl.queue().enqueueWriteBuffer(qb, CL_TRUE, 0, qBytes, q.data()));
         const bool v8 = impl.params().fieldVector && std::is_same_v<T, float>;  // float only (eval_field.cl)
         const char* name = k == 1   ? (v8 ? "eval_field_value_v8" : "eval_field_value")
                            : k == 4 ? (v8 ? "eval_field_gradient_v8" : "eval_field_gradient")
