@@ -220,7 +220,7 @@ inline void addRefineOptions(CLI::App& app, SurfaceOptions& surface) {
                         "from it (the neck pass: the cells there refined one level more; meshes up to 2M triangles)");
   addNumber(app, "refine-tolerance", surface.refineTolerance,
             "refine only where the grid's contour is farther than F of the largest side from the level set (default "
-            "2.5e-4; 0: every cell with a layer one node thick)")
+            "5e-4; 0: every cell with a layer one node thick)")
       ->check([](const std::string& v) {
         const double d = parseFinite(v, "refine-tolerance");
         if (d < 0 || d > 1) throw UsageError("option --refine-tolerance must be between 0 and 1");

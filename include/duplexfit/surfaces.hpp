@@ -34,9 +34,9 @@ struct SurfaceOptions {
   }();
   /// Unless polygonize.refineTolerance is set, the local refinement (PolygonizeOptions::refineLevels) keeps
   /// the thin cells whose contour is farther than this fraction of the field's largest side from the level
-  /// set: a quarter of the level-set deviation the pipelines report against (0.1% of the side). 0: every
-  /// thin cell.
-  double refineTolerance = 2.5e-4;
+  /// set: half the level-set deviation the pipelines report against (0.1% of the side), the projection's
+  /// target (narrower features are the neck pass's). 0: every thin cell.
+  double refineTolerance = 5e-4;
   /// What the pipelines (runPipeline, runMeshPipeline) do with each mesh after extraction and the
   /// small-component drop: cleaning, optional simplification, the deviation from the level set
   /// (finishSurfaces). extractSurfaces itself returns the marching-tetrahedra meshes as they are.
