@@ -12,6 +12,7 @@
 #include "duplexfit/error.hpp"
 #include "measure/bvh_data.hpp"
 #include "measure/geometry.hpp"
+#include "measure/median_split.hpp"
 #include "measure/parallel_errors.hpp"
 
 namespace duplexfit {
@@ -248,17 +249,7 @@ struct Builder {
       n.count = static_cast<std::uint32_t>(count);
       return;
     }
-    int axis = 0;
-    for (int k = 1; k < 3; ++k) {
-      if (chi[k] - clo[k] > chi[axis] - clo[axis]) axis = k;
-    }
-    const std::size_t mid = begin + count / 2;
-    const double* cen = centroids;
-    std::nth_element(order + begin, order + mid, order + end, [cen, axis](std::uint32_t x, std::uint32_t y) {
-      const double cx = cen[3 * std::size_t{x} + static_cast<std::size_t>(axis)];
-      const double cy = cen[3 * std::size_t{y} + static_cast<std::size_t>(axis)];
-      return cx != cy ? cx < cy : x < y;
-    });
+    const std::size_t mid = measure_detail::medianSplit(order, begin, end, centroids, clo, chi);
     const std::size_t left = node + 1;
     const std::size_t right = left + (*counts)(mid - begin);
     n.index = static_cast<std::uint32_t>(right);

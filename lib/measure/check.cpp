@@ -18,6 +18,7 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/measure.hpp"
 #include "measure/geometry.hpp"
+#include "measure/median_split.hpp"
 #include "measure/parallel_errors.hpp"
 
 namespace duplexfit {
@@ -449,17 +450,7 @@ class BoxTree {
         n.count = static_cast<std::uint32_t>(count);
         return;
       }
-      int axis = 0;
-      for (int c = 1; c < 3; ++c) {
-        if (chi[c] - clo[c] > chi[axis] - clo[axis]) axis = c;
-      }
-      const std::size_t mid = begin + count / 2;
-      const float* cen = centre;
-      std::nth_element(order + begin, order + mid, order + end, [cen, axis](std::uint32_t x, std::uint32_t y) {
-        const float cx = cen[3 * std::size_t{x} + static_cast<std::size_t>(axis)];
-        const float cy = cen[3 * std::size_t{y} + static_cast<std::size_t>(axis)];
-        return cx != cy ? cx < cy : x < y;
-      });
+      const std::size_t mid = measure_detail::medianSplit(order, begin, end, centre, clo, chi);
       const std::size_t left = node + 1;
       const std::size_t right = left + nodeCount(mid - begin);
       n.index = static_cast<std::uint32_t>(right);

@@ -1,0 +1,30 @@
+// The object-median split shared by the library's bounding-volume trees (TriangleBvh, the pair search's box
+// tree): private to the library.
+#pragma once
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+
+namespace duplexfit::measure_detail {
+
+/// Splits order[begin, end) at its middle along the longest axis of the centroids' extent [lo, hi]: the
+/// first half gets the entries of smaller centroid coordinate (ties by entry), and the middle is returned.
+/// `centroids` holds 3 reals per entry.
+template <typename Real>
+std::size_t medianSplit(std::uint32_t* order, std::size_t begin, std::size_t end, const Real* centroids,
+                        const Real lo[3], const Real hi[3]) {
+  int axis = 0;
+  for (int k = 1; k < 3; ++k) {
+    if (hi[k] - lo[k] > hi[axis] - lo[axis]) axis = k;
+  }
+  const std::size_t mid = begin + (end - begin) / 2;
+  std::nth_element(order + begin, order + mid, order + end, [centroids, axis](std::uint32_t x, std::uint32_t y) {
+    const Real cx = centroids[3 * std::size_t{x} + static_cast<std::size_t>(axis)];
+    const Real cy = centroids[3 * std::size_t{y} + static_cast<std::size_t>(axis)];
+    return cx != cy ? cx < cy : x < y;
+  });
+  return mid;
+}
+
+}  // namespace duplexfit::measure_detail
