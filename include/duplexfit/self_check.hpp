@@ -109,9 +109,16 @@ struct SelfCheckReport {
 SelfCheckReport selfCheck(const std::vector<Mesh>& meshes, const std::vector<double>& isos, const Points& inputPoints,
                           const SelfCheckOptions& options = {});
 
-/// dropSmallComponents on every mesh in place (minAreaFraction on the zero-level mesh, the larger of it and
-/// minOffsetAreaFraction on the offset meshes), then selfCheck on the result;
-/// the report's surfaces say what was dropped, and seconds cover both.
+/// The area fraction below which a fit's mesh `mesh` loses its components: options.minAreaFraction on the
+/// zero-level mesh (0), the larger of it and options.minOffsetAreaFraction on the offset meshes.
+double dropFraction(const SelfCheckOptions& options, std::size_t mesh);
+
+/// dropSmallComponents on every mesh of a fit in place, at dropFraction; what each lost (in mesh order).
+/// @throws InvalidArgument when a fraction is not in [0, 1).
+std::vector<DroppedComponents> dropSmallComponents(std::vector<Mesh>& meshes, const SelfCheckOptions& options);
+
+/// dropSmallComponents(meshes, options), then selfCheck on the result; the report's surfaces say what was
+/// dropped, and seconds cover both.
 SelfCheckReport cleanAndSelfCheck(std::vector<Mesh>& meshes, const std::vector<double>& isos,
                                   const Points& inputPoints, const SelfCheckOptions& options = {});
 

@@ -54,8 +54,9 @@ struct SurfaceOptions {
   /// little gain (fandisk_50k: 3,439 and 9,575 cells, 6 s of fit became 189 s, the offset still 0.66% off).
   std::size_t neckPassMaxCells = 1500;
   /// The neck pass first replaces only the faces around its cells (the level set extracted again in boxes
-  /// around them, the patch finished on its own and joined by a band); when that is refused (the boundaries do not pair up, the result is not
-  /// closed, crosses itself or is not closer) it extracts and finishes the whole level set again.
+  /// around them, the patch finished on its own and joined by a band); when that is refused (the boundaries
+  /// do not pair up, the result is not closed, crosses itself or is not closer) it extracts and finishes the
+  /// whole level set again.
   bool localNeckPass = true;
 };
 

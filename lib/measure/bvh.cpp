@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <map>
 #include <numeric>
 #include <string>
 
@@ -158,24 +157,7 @@ constexpr std::size_t kParallelBuild = 16384;  // subtrees at least this large b
 
 using Node = TriangleBvh::Data::Node;
 
-/// Node counts of median-split subtrees by triangle count (two distinct sizes a level).
-class NodeCounts {
- public:
-  explicit NodeCounts(std::size_t n) { count(n); }
-  std::size_t operator()(std::size_t n) const { return n <= kLeafSize ? 1 : memo_.at(n); }
-  int depth(std::size_t n) const { return n <= kLeafSize ? 1 : 1 + std::max(depth(n / 2), depth(n - n / 2)); }
-
- private:
-  std::size_t count(std::size_t n) {
-    if (n <= kLeafSize) return 1;
-    const auto it = memo_.find(n);
-    if (it != memo_.end()) return it->second;
-    const std::size_t c = 1 + count(n / 2) + count(n - n / 2);
-    memo_[n] = c;
-    return c;
-  }
-  std::map<std::size_t, std::size_t> memo_;
-};
+using NodeCounts = measure_detail::MedianSplitCounts;
 
 struct Builder {
   const double* corners;   // 9 per face, mesh order
@@ -303,7 +285,7 @@ TriangleBvh::TriangleBvh(const Mesh& mesh) {
   }
   std::vector<std::uint32_t> order(nf);
   std::iota(order.begin(), order.end(), 0U);
-  const NodeCounts counts(nf);
+  const NodeCounts counts(nf, kLeafSize);
   data->nodes.resize(counts(nf));
   data->depth = counts.depth(nf);
   measure_detail::ParallelErrors errors;

@@ -327,9 +327,10 @@ class BoxTree {
     }
     std::vector<std::uint32_t> order(m);
     std::iota(order.begin(), order.end(), 0U);
-    nodes_.resize(nodeCount(m));
+    const measure_detail::MedianSplitCounts counts(m, kBoxLeaf);
+    nodes_.resize(counts(m));
     measure_detail::ParallelErrors errors;
-    Builder b{box.data(), centre.data(), order.data(), nodes_.data()};
+    Builder b{box.data(), centre.data(), order.data(), nodes_.data(), &counts};
     if (m >= kBoxParallel) {
 #pragma omp parallel default(none) shared(b, m, errors)
 #pragma omp single
@@ -406,25 +407,12 @@ class BoxTree {
     return !(b.lo[0] > hi[0] || b.hi[0] < lo[0] || b.lo[1] > hi[1] || b.hi[1] < lo[1] || b.lo[2] > hi[2] ||
              b.hi[2] < lo[2]);
   }
-  static std::size_t nodeCount(std::size_t n) {
-    // Median splits: the two halves of n are n/2 and n - n/2, so each level has at most two distinct sizes.
-    std::vector<std::pair<std::size_t, std::size_t>> memo;  // (size, nodes)
-    const auto count = [&memo](std::size_t k, const auto& self) -> std::size_t {
-      if (k <= kBoxLeaf) return 1;
-      for (const auto& [size, nodes] : memo) {
-        if (size == k) return nodes;
-      }
-      const std::size_t c = 1 + self(k / 2, self) + self(k - k / 2, self);
-      memo.emplace_back(k, c);
-      return c;
-    };
-    return count(n, count);
-  }
   struct Builder {
     const Box* box;
     const float* centre;
     std::uint32_t* order;
     Node* nodes;
+    const measure_detail::MedianSplitCounts* counts;
     void build(std::size_t node, std::size_t begin, std::size_t end, measure_detail::ParallelErrors& errors) {
       Node& n = nodes[node];
       float clo[3], chi[3];
@@ -452,7 +440,7 @@ class BoxTree {
       }
       const std::size_t mid = measure_detail::medianSplit(order, begin, end, centre, clo, chi);
       const std::size_t left = node + 1;
-      const std::size_t right = left + nodeCount(mid - begin);
+      const std::size_t right = left + (*counts)(mid - begin);
       n.index = static_cast<std::uint32_t>(right);
       n.count = 0;
       if (count >= kBoxParallel) {

@@ -1,10 +1,11 @@
-// The object-median split shared by the library's bounding-volume trees (TriangleBvh, the pair search's box
+// The object-median split and node counts shared by the library's bounding-volume trees (TriangleBvh, the pair search's box
 // tree): private to the library.
 #pragma once
 
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <map>
 
 namespace duplexfit::measure_detail {
 
@@ -26,5 +27,26 @@ std::size_t medianSplit(std::uint32_t* order, std::size_t begin, std::size_t end
   });
   return mid;
 }
+
+/// Node counts of median-split trees with at most `leaf` entries a leaf, by entry count (two distinct sizes
+/// a level, so the table stays small): a subtree of n entries takes counts(n) nodes, laid out depth-first.
+class MedianSplitCounts {
+ public:
+  MedianSplitCounts(std::size_t n, std::size_t leaf) : leaf_(leaf) { count(n); }
+  std::size_t operator()(std::size_t n) const { return n <= leaf_ ? 1 : memo_.at(n); }
+  int depth(std::size_t n) const { return n <= leaf_ ? 1 : 1 + std::max(depth(n / 2), depth(n - n / 2)); }
+
+ private:
+  std::size_t count(std::size_t n) {
+    if (n <= leaf_) return 1;
+    const auto it = memo_.find(n);
+    if (it != memo_.end()) return it->second;
+    const std::size_t c = 1 + count(n / 2) + count(n - n / 2);
+    memo_[n] = c;
+    return c;
+  }
+  std::size_t leaf_;
+  std::map<std::size_t, std::size_t> memo_;
+};
 
 }  // namespace duplexfit::measure_detail

@@ -427,7 +427,7 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
     }
     PolygonizeOptions po = surfacePolygonizeOptions(field, surface);
     po.refineDeeperCells = cells;
-    // First the local replacement: the level set extracted in a slab around the cells only, its faces within
+    // First the local replacement: the level set extracted in boxes around the cells only, its faces within
     // kSpliceInner cells of them finished on their own and spliced into the mesh.
     if (surface.localNeckPass && surface.finish.clean && surface.finish.project &&
         surface.finish.simplify.maxTriangles == 0 && !(surface.finish.simplify.maxError > 0.0)) {
@@ -539,17 +539,7 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
   // Components below the minimum area fractions are dropped before the finishing (cleanAndSelfCheck's
   // first half); the check itself runs once, on the meshes as written (below).
   t = Clock::now();
-  const auto minAreaOf = [&](std::size_t i) {
-    return i == 0 ? options.selfCheck.minAreaFraction
-                  : std::max(options.selfCheck.minAreaFraction, options.selfCheck.minOffsetAreaFraction);
-  };
-  std::vector<DroppedComponents> dropped(meshes.size());
-  for (std::size_t i = 0; i < meshes.size(); ++i) {
-    if (!(minAreaOf(i) > 0.0)) continue;
-    DropResult d = dropSmallComponents(meshes[i], minAreaOf(i));
-    meshes[i] = std::move(d.mesh);
-    dropped[i] = d.dropped;
-  }
+  const std::vector<DroppedComponents> dropped = dropSmallComponents(meshes, options.selfCheck);
   const double dropSeconds = secondsSince(t);
 
   // Cleaning, simplification when asked, and every mesh's deviation from its level set.
@@ -560,8 +550,8 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
   // The neck pass (duplex mode: one field, one grid).
   if (!options.separate && evaluator) {
     for (std::size_t i = 0; i < meshes.size(); ++i) {
-      neckPass(*evaluator, result.fields[0], report.grid, isos[i], surface, minAreaOf(i), meshes[i], finished[i],
-               surfaceName(static_cast<int>(i)), progress);
+      neckPass(*evaluator, result.fields[0], report.grid, isos[i], surface, dropFraction(options.selfCheck, i),
+               meshes[i], finished[i], surfaceName(static_cast<int>(i)), progress);
     }
   }
   report.secondsFinish = secondsSince(t);
@@ -572,8 +562,6 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
   progress.start("self-check");
   report.selfCheck = selfCheck(meshes, isos, checkPoints, options.selfCheck);
   for (std::size_t i = 0; i < report.selfCheck.surfaces.size(); ++i) report.selfCheck.surfaces[i].dropped = dropped[i];
-  report.selfCheck.minAreaFraction = options.selfCheck.minAreaFraction;
-  report.selfCheck.minOffsetAreaFraction = options.selfCheck.minOffsetAreaFraction;
   report.selfCheck.seconds += dropSeconds;
   logSelfCheck(report.selfCheck, progress);
   progress.end();

@@ -330,16 +330,25 @@ SelfCheckReport selfCheck(const std::vector<Mesh>& meshes, const std::vector<dou
   return r;
 }
 
-SelfCheckReport cleanAndSelfCheck(std::vector<Mesh>& meshes, const std::vector<double>& isos, const Points& inputPoints,
-                                  const SelfCheckOptions& options) {
-  const auto start = Clock::now();
+double dropFraction(const SelfCheckOptions& options, std::size_t mesh) {
+  return mesh == 0 ? options.minAreaFraction : std::max(options.minAreaFraction, options.minOffsetAreaFraction);
+}
+
+std::vector<DroppedComponents> dropSmallComponents(std::vector<Mesh>& meshes, const SelfCheckOptions& options) {
   checkFraction(options.minAreaFraction);
   checkFraction(options.minOffsetAreaFraction);
   std::vector<DroppedComponents> dropped(meshes.size());
   for (std::size_t i = 0; i < meshes.size(); ++i) {
-    const double fraction = i == 0 ? options.minAreaFraction : std::max(options.minAreaFraction, options.minOffsetAreaFraction);
+    const double fraction = dropFraction(options, i);
     if (fraction > 0.0) meshes[i] = withoutSmallComponents(meshes[i], fraction, &dropped[i]);
   }
+  return dropped;
+}
+
+SelfCheckReport cleanAndSelfCheck(std::vector<Mesh>& meshes, const std::vector<double>& isos, const Points& inputPoints,
+                                  const SelfCheckOptions& options) {
+  const auto start = Clock::now();
+  const std::vector<DroppedComponents> dropped = dropSmallComponents(meshes, options);
   SelfCheckReport r = selfCheck(meshes, isos, inputPoints, options);
   for (std::size_t i = 0; i < r.surfaces.size(); ++i) r.surfaces[i].dropped = dropped[i];
   r.seconds = secondsSince(start);

@@ -212,6 +212,28 @@ TEST_CASE("cleanAndSelfCheck: a dropped spurious component is reported as droppe
   }
 }
 
+TEST_CASE("dropSmallComponents of a fit's meshes: the zero level at minAreaFraction, offsets at the larger fraction") {
+  // The small sphere is 1% of each mesh's area: only the offsets' 0.02 drops it.
+  std::vector<Mesh> meshes = {merged(icosphere(4, 1.0), icosphere(2, 0.1, Eigen::RowVector3d(3.0, 0.0, 0.0))),
+                              merged(icosphere(4, 1.0), icosphere(2, 0.1, Eigen::RowVector3d(3.0, 0.0, 0.0)))};
+  SelfCheckOptions o;
+  o.minAreaFraction = 0.005;
+  o.minOffsetAreaFraction = 0.02;
+  CHECK(dropFraction(o, 0) == 0.005);
+  CHECK(dropFraction(o, 1) == 0.02);
+  CHECK(dropFraction(o, 7) == 0.02);
+  const std::vector<DroppedComponents> d = dropSmallComponents(meshes, o);
+  REQUIRE(d.size() == 2);
+  CHECK(d[0].components == 0);
+  CHECK(d[0].minAreaFraction == 0.005);
+  CHECK(analyzeTopology(meshes[0]).components == 2);
+  CHECK(d[1].components == 1);
+  CHECK(d[1].minAreaFraction == 0.02);
+  CHECK(analyzeTopology(meshes[1]).components == 1);
+  o.minOffsetAreaFraction = 1.0;
+  CHECK_THROWS_AS(dropSmallComponents(meshes, o), InvalidArgument);
+}
+
 TEST_CASE("self-check: bad input is a clear error") {
   const std::vector<Mesh> one = {icosphere(1, 1.0)};
   const Points p = unitSpherePoints(100);
