@@ -182,9 +182,9 @@ struct ProjectOptions {
   /// triangle: on fandisk_50k 8 of 224k predicted faces were in fact beyond the target (at most 1.75×
   /// it). Off: every face centre is evaluated.
   bool estimateCentres = false;
-  /// Afterwards, check the mesh for intersecting and float32-degenerate triangles (checkMesh) and move
-  /// the vertices around them back to the extracted surface until there are none (at most 12 rounds, the
-  /// last one moves every vertex back).
+  /// Afterwards, check the faces the moves changed for intersecting and float32-degenerate triangles
+  /// (checkMesh's tests) and move the vertices around them back to the extracted surface until there are
+  /// none (at most 12 rounds, the last one moves every vertex back).
   bool undoSelfIntersections = true;
   /// An open mesh: the ends of its boundary edges are not moved (nor are boundary edges ever split), so
   /// that it still fits the mesh around it (the neck pass's patch, docs/method.md §7).
@@ -205,7 +205,9 @@ struct ProjectReport {
   std::size_t markedLeft = 0;    ///< faces still beyond the target when the splits stopped
   std::size_t centresEvaluated = 0;  ///< face centres evaluated (all rounds)
   std::size_t centresPredicted = 0;  ///< face centres predicted within the target instead (estimateCentres)
-  std::size_t selfIntersectionsFound = 0;  ///< intersecting triangle pairs after the moves, before the undo
+  /// Intersecting triangle pairs after the moves, before the undo, with a face the moves changed (pairs of
+  /// unmoved faces cross on the extracted mesh itself: no undo changes them, and they are not counted).
+  std::size_t selfIntersectionsFound = 0;
   std::size_t reverted = 0;      ///< vertices moved back to the extracted surface by the undo
   double seconds = 0.0;
 };

@@ -18,7 +18,6 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/measure.hpp"
 #include "measure/geometry.hpp"
-#include "measure/median_split.hpp"
 #include "measure/parallel_errors.hpp"
 
 namespace duplexfit {
@@ -113,13 +112,55 @@ std::vector<std::int32_t> weldedIds(const Mesh& mesh) {
   return id;
 }
 
-/// A triangle prepared for the pair tests.
+/// A triangle prepared for the pair tests (made on the fly, on the stack: see FaceSource).
 struct Tri {
   double p[9];
   double n[3];       // unit normal
   std::int32_t id[3];  // welded vertex ids
   double tol;        // kRelTol · longest edge
   bool skip;         // degenerate
+};
+
+/// The mesh's faces for the pair search, prepared when asked for from the mesh's own arrays: nothing is
+/// stored a face (a table of prepared triangles took 128 bytes a face, fresh memory on every call).
+struct FaceSource {
+  const std::int32_t* f;       // 3 vertex indices a face
+  const double* v;             // 3 coordinates a vertex
+  const std::int32_t* welded;  // welded vertex ids
+  /// The face's corners, 9 coordinates.
+  void corners(std::size_t i, double* p) const {
+    for (std::size_t k = 0; k < 3; ++k) {
+      const auto idx = static_cast<std::size_t>(f[3 * i + k]);
+      for (std::size_t c = 0; c < 3; ++c) p[3 * k + c] = v[3 * idx + c];
+    }
+  }
+  /// The face's bounding box.
+  void box(std::size_t i, double lo[3], double hi[3]) const {
+    double p[9];
+    corners(i, p);
+    for (int c = 0; c < 3; ++c) {
+      lo[c] = std::min({p[c], p[3 + c], p[6 + c]});
+      hi[c] = std::max({p[c], p[3 + c], p[6 + c]});
+    }
+  }
+  Tri tri(std::size_t i) const {
+    Tri t{};
+    corners(i, t.p);
+    for (std::size_t k = 0; k < 3; ++k) t.id[k] = welded[static_cast<std::size_t>(f[3 * i + k])];
+    double ab[3], ac[3], bc[3];
+    sub(t.p + 3, t.p, ab);
+    sub(t.p + 6, t.p, ac);
+    sub(t.p + 6, t.p + 3, bc);
+    cross(ab, ac, t.n);
+    const double len = std::sqrt(norm2(t.n));
+    const double longest = std::sqrt(std::max({norm2(ab), norm2(ac), norm2(bc)}));
+    t.tol = kRelTol * longest;
+    t.skip = t.id[0] == t.id[1] || t.id[1] == t.id[2] || t.id[0] == t.id[2] || !(len > 1e-12 * longest * longest);
+    if (!t.skip) {
+      for (double& x : t.n) x /= len;
+    }
+    return t;
+  }
 };
 
 /// Distances of q's corners to the plane (unit normal n through a), snapped to 0 within tol.
@@ -300,61 +341,93 @@ bool pairIntersect(const Tri& s, const Tri& t, double tol) {
   return true;  // the same three vertices: a duplicate face
 }
 
-/// The pair search's tree of boxes over the tested triangles: object-median splits along the longest axis
-/// of the centroids' extent (as TriangleBvh), at most kBoxLeaf triangles a leaf, nodes depth-first with the
-/// left child next to its parent, boxes in float rounded outward (a superset of the double boxes' overlaps;
-/// each candidate is then tested on its exact double box). About 80 bytes a triangle where TriangleBvh,
-/// built for closest points (cones, corners in two orders), touches some 400 with its temporaries: on a
-/// large mesh the first touch of fresh memory costs as much as the build (fandisk_550k's 3.9M-triangle
-/// zero mesh: 4.3 s for the tree inside the fit, 1.8 s in a process that reuses its memory).
+/// The pair search's tree of boxes over the tested triangles. The triangles are ordered by the Morton code
+/// of their box centres (10 bits an axis over the centres' extent, a stable radix sort, so ties keep face
+/// order) and each node splits its range where the codes' highest differing bit changes (the middle where
+/// the codes are equal): an octree-like tree of compact nodes built in linear time, with no geometric
+/// sorting. Nodes depth-first with the left child next to its parent, at most kBoxLeaf triangles a leaf,
+/// boxes in float rounded outward (a superset of the double boxes' overlaps; each candidate is then tested
+/// on its exact double box). About 60 bytes a triangle. The object-median build it replaced (TriangleBvh's
+/// splits) took 1.6 s of fandisk_550k's 3.7M-triangle zero mesh's 3.6 s pair search (docs/benchmarks.md).
 class BoxTree {
  public:
-  BoxTree(const std::vector<Tri>& tris, const std::vector<std::int64_t>& tested) : tris_(tris) {
+  BoxTree(const FaceSource& faces, const std::vector<std::int64_t>& tested) : faces_(faces) {
     const std::size_t m = tested.size();
     if (m >= std::numeric_limits<std::uint32_t>::max() / 2) {
       throw InvalidArgument("self-intersections: too many faces (" + std::to_string(m) + ")");
     }
-    std::vector<Box> box(m);
-    std::vector<float> centre(3 * m);
+    // The box centres' extent, then their Morton codes (code << 32 | entry), sorted by code with a stable
+    // LSD radix sort; the leaf boxes are then made in sorted order (no per-entry arrays but the keys).
+    double clo[3], chi[3];
+    for (int c = 0; c < 3; ++c) {
+      clo[c] = std::numeric_limits<double>::infinity();
+      chi[c] = -std::numeric_limits<double>::infinity();
+    }
+    const auto centre = [&faces, &tested](std::size_t i, double* x) {
+      double lo[3], hi[3];
+      faces.box(static_cast<std::size_t>(tested[i]), lo, hi);
+      for (int c = 0; c < 3; ++c) x[c] = 0.5 * (lo[c] + hi[c]);
+    };
     for (std::size_t i = 0; i < m; ++i) {
-      const double* p = tris[static_cast<std::size_t>(tested[i])].p;
+      double x[3];
+      centre(i, x);
       for (int c = 0; c < 3; ++c) {
-        const double lo = std::min({p[c], p[3 + c], p[6 + c]}), hi = std::max({p[c], p[3 + c], p[6 + c]});
-        box[i].lo[c] = down(lo);
-        box[i].hi[c] = up(hi);
-        centre[3 * i + static_cast<std::size_t>(c)] = static_cast<float>(0.5 * (lo + hi));
+        clo[c] = std::min(clo[c], x[c]);
+        chi[c] = std::max(chi[c], x[c]);
       }
     }
-    std::vector<std::uint32_t> order(m);
-    std::iota(order.begin(), order.end(), 0U);
-    const measure_detail::MedianSplitCounts counts(m, kBoxLeaf);
-    nodes_.resize(counts(m));
-    measure_detail::ParallelErrors errors;
-    Builder b{box.data(), centre.data(), order.data(), nodes_.data(), &counts};
-    if (m >= kBoxParallel) {
-#pragma omp parallel default(none) shared(b, m, errors)
-#pragma omp single
-      errors.run([&] { b.build(0, 0, m, errors); });
-      errors.rethrow();
-    } else {
-      b.build(0, 0, m, errors);
-      errors.rethrow();
+    std::vector<std::uint64_t> key(m);
+    double scale[3];
+    for (int c = 0; c < 3; ++c) scale[c] = chi[c] > clo[c] ? 1023.999 / (chi[c] - clo[c]) : 0.0;
+    for (std::size_t i = 0; i < m; ++i) {
+      double x[3];
+      centre(i, x);
+      std::uint32_t code = 0;
+      for (int c = 0; c < 3; ++c) {
+        const auto q = static_cast<std::uint32_t>(std::clamp((x[c] - clo[c]) * scale[c], 0.0, 1023.0));
+        code |= spread(q) << (2 - c);
+      }
+      key[i] = (std::uint64_t{code} << 32) | i;
+    }
+    {
+      std::vector<std::uint64_t> tmp(m);
+      for (int shift = 32; shift < 62; shift += 10) {
+        std::size_t bucket[1025] = {};
+        for (const std::uint64_t k : key) ++bucket[((k >> shift) & 1023U) + 1];
+        for (std::size_t b = 1; b <= 1024; ++b) bucket[b] += bucket[b - 1];
+        for (const std::uint64_t k : key) tmp[bucket[(k >> shift) & 1023U]++] = k;
+        key.swap(tmp);
+      }
     }
     leafBox_.resize(m);
     face_.resize(m);
+    code_.resize(m);
     for (std::size_t k = 0; k < m; ++k) {
-      leafBox_[k] = box[order[k]];
-      face_[k] = tested[order[k]];
+      const std::int64_t face = tested[static_cast<std::size_t>(key[k] & 0xffffffffU)];
+      double lo[3], hi[3];
+      faces.box(static_cast<std::size_t>(face), lo, hi);
+      for (int c = 0; c < 3; ++c) {
+        leafBox_[k].lo[c] = down(lo[c]);
+        leafBox_[k].hi[c] = up(hi[c]);
+      }
+      face_[k] = face;
+      code_[k] = static_cast<std::uint32_t>(key[k] >> 32);
     }
+    key = {};
+    nodes_.reserve(2 * m);  // an upper bound (leaves of at least one entry); only what is used is touched
+    if (m > 0) build(0, m, 0);
+
+    code_ = {};
   }
 
   /// Appends the faces whose double bounding boxes meet [lo, hi], at most `limit`: false when it stopped
   /// there with faces left unvisited.
   bool overlapping(const double lo[3], const double hi[3], std::vector<std::int64_t>& out, std::size_t limit) const {
+    if (nodes_.empty()) return true;
     const float flo[3] = {down(lo[0]), down(lo[1]), down(lo[2])};
     const float fhi[3] = {up(hi[0]), up(hi[1]), up(hi[2])};
     std::size_t room = limit;
-    std::uint32_t stack[128];
+    std::uint32_t stack[kMaxDepth + 2];
     int sp = 0;
     stack[sp++] = 0;
     while (sp > 0) {
@@ -368,11 +441,10 @@ class BoxTree {
       }
       for (std::size_t k = n.index; k < std::size_t{n.index} + n.count; ++k) {
         if (!meets(leafBox_[k], flo, fhi)) continue;
-        const double* t = tris_[static_cast<std::size_t>(face_[k])].p;
+        double tlo[3], thi[3];
+        faces_.box(static_cast<std::size_t>(face_[k]), tlo, thi);
         bool miss = false;
-        for (int c = 0; c < 3; ++c) {
-          miss = miss || std::min({t[c], t[3 + c], t[6 + c]}) > hi[c] || std::max({t[c], t[3 + c], t[6 + c]}) < lo[c];
-        }
+        for (int c = 0; c < 3; ++c) miss = miss || tlo[c] > hi[c] || thi[c] < lo[c];
         if (miss) continue;
         if (room == 0) return false;
         out.push_back(face_[k]);
@@ -384,7 +456,9 @@ class BoxTree {
 
  private:
   static constexpr std::size_t kBoxLeaf = 4;
-  static constexpr std::size_t kBoxParallel = 16384;  // subtrees at least this large become OpenMP tasks
+  // 30 code bits, then middle splits of at most 2^32 equal codes: the deepest path, and the query stack's
+  // bound (a query holds at most one pending right child a level).
+  static constexpr int kMaxDepth = 30 + 33;
   struct Box {
     float lo[3], hi[3];
   };
@@ -393,6 +467,15 @@ class BoxTree {
     std::uint32_t index;  // leaf: first slot; inner: right child (left = this + 1)
     std::uint32_t count;  // leaf: faces; inner: 0
   };
+  /// The 10 bits of q spread to every third bit.
+  static std::uint32_t spread(std::uint32_t q) {
+    q &= 0x3ffU;
+    q = (q | (q << 16)) & 0x030000ffU;
+    q = (q | (q << 8)) & 0x0300f00fU;
+    q = (q | (q << 4)) & 0x030c30c3U;
+    q = (q | (q << 2)) & 0x09249249U;
+    return q;
+  }
   static float down(double x) {
     float f = static_cast<float>(x);
     if (static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
@@ -407,58 +490,48 @@ class BoxTree {
     return !(b.lo[0] > hi[0] || b.hi[0] < lo[0] || b.lo[1] > hi[1] || b.hi[1] < lo[1] || b.lo[2] > hi[2] ||
              b.hi[2] < lo[2]);
   }
-  struct Builder {
-    const Box* box;
-    const float* centre;
-    std::uint32_t* order;
-    Node* nodes;
-    const measure_detail::MedianSplitCounts* counts;
-    void build(std::size_t node, std::size_t begin, std::size_t end, measure_detail::ParallelErrors& errors) {
-      Node& n = nodes[node];
-      float clo[3], chi[3];
-      for (int c = 0; c < 3; ++c) {
-        n.box.lo[c] = clo[c] = std::numeric_limits<float>::infinity();
-        n.box.hi[c] = chi[c] = -std::numeric_limits<float>::infinity();
-      }
-      Box b = n.box;
-      for (std::size_t i = begin; i < end; ++i) {
-        const Box& x = box[order[i]];
-        const float* m = centre + 3 * std::size_t{order[i]};
-        for (int c = 0; c < 3; ++c) {
-          b.lo[c] = std::min(b.lo[c], x.lo[c]);
-          b.hi[c] = std::max(b.hi[c], x.hi[c]);
-          clo[c] = std::min(clo[c], m[c]);
-          chi[c] = std::max(chi[c], m[c]);
-        }
-      }
-      n.box = b;
-      const std::size_t count = end - begin;
-      if (count <= kBoxLeaf) {
-        n.index = static_cast<std::uint32_t>(begin);
-        n.count = static_cast<std::uint32_t>(count);
-        return;
-      }
-      const std::size_t mid = measure_detail::medianSplit(order, begin, end, centre, clo, chi);
-      const std::size_t left = node + 1;
-      const std::size_t right = left + (*counts)(mid - begin);
-      n.index = static_cast<std::uint32_t>(right);
-      n.count = 0;
-      if (count >= kBoxParallel) {
-#pragma omp task default(none) firstprivate(left, begin, mid) shared(errors)
-        errors.run([&] { build(left, begin, mid, errors); });
-#pragma omp task default(none) firstprivate(right, mid, end) shared(errors)
-        errors.run([&] { build(right, mid, end, errors); });
-#pragma omp taskwait
-      } else {
-        build(left, begin, mid, errors);
-        build(right, mid, end, errors);
-      }
+  static void unite(Box& a, const Box& b) {
+    for (int c = 0; c < 3; ++c) {
+      a.lo[c] = std::min(a.lo[c], b.lo[c]);
+      a.hi[c] = std::max(a.hi[c], b.hi[c]);
     }
-  };
-  const std::vector<Tri>& tris_;
+  }
+  /// Builds the subtree of slots [begin, end) (sorted codes) at nodes_.size(), returning its box.
+  Box build(std::size_t begin, std::size_t end, int depth) {
+    const std::size_t self = nodes_.size();
+    nodes_.push_back(Node{});
+    const std::size_t count = end - begin;
+    if (count <= kBoxLeaf || depth >= kMaxDepth) {
+      Box b = leafBox_[begin];
+      for (std::size_t k = begin + 1; k < end; ++k) unite(b, leafBox_[k]);
+      nodes_[self] = Node{b, static_cast<std::uint32_t>(begin), static_cast<std::uint32_t>(count)};
+      return b;
+    }
+    // The first slot whose code differs from the first one's in the highest bit where the range's codes
+    // differ; the middle when they are all equal.
+    std::size_t mid = begin + count / 2;
+    const std::uint32_t first = code_[begin], last = code_[end - 1];
+    if (first != last) {
+      int bit = 31;
+      while (((first ^ last) >> bit) == 0) --bit;
+      const std::uint32_t mask = ~((std::uint32_t{1} << bit) - 1U);
+      const std::uint32_t upper = last & mask;
+      mid = static_cast<std::size_t>(
+          std::lower_bound(code_.begin() + static_cast<std::ptrdiff_t>(begin), code_.begin() + static_cast<std::ptrdiff_t>(end),
+                           upper) -
+          code_.begin());
+    }
+    Box b = build(begin, mid, depth + 1);
+    const auto right = static_cast<std::uint32_t>(nodes_.size());
+    unite(b, build(mid, end, depth + 1));
+    nodes_[self] = Node{b, right, 0};
+    return b;
+  }
+  const FaceSource& faces_;
   std::vector<Node> nodes_;
   std::vector<Box> leafBox_;           // leaf order
   std::vector<std::int64_t> face_;     // leaf order -> face
+  std::vector<std::uint32_t> code_;    // leaf order -> Morton code (during the build)
 };
 
 SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& options,
@@ -527,14 +600,14 @@ namespace {
 /// fandisk_550k's offset mesh: 3.5 s a round before). The pairs found are the same; only where a face
 /// has more candidates than its per-face bound (CheckOptions::candidatePairBudget, at least 1024) can the
 /// prefix examined, and so an incomplete count, differ.
-std::vector<std::int64_t> nearAsked(const std::vector<Tri>& tris, const std::vector<char>& asked,
+std::vector<std::int64_t> nearAsked(const FaceSource& faces, const std::vector<char>& asked,
                                     const std::vector<std::int64_t>& tested) {
   Mesh boxes;  // each asked face's query box as the triangle of its two corners (its bounding box)
   std::vector<std::array<double, 6>> rows;
   double grow = 0.0;
   for (const std::int64_t i : tested) {
     if (!asked[static_cast<std::size_t>(i)]) continue;
-    const Tri& s = tris[static_cast<std::size_t>(i)];
+    const Tri s = faces.tri(static_cast<std::size_t>(i));
     std::array<double, 6> b{};
     for (int c = 0; c < 3; ++c) {
       b[static_cast<std::size_t>(c)] = std::min({s.p[c], s.p[3 + c], s.p[6 + c]}) - s.tol;
@@ -558,17 +631,18 @@ std::vector<std::int64_t> nearAsked(const std::vector<Tri>& tris, const std::vec
   std::vector<char> keep(tested.size(), 0);
   const auto n = static_cast<long long>(tested.size());
   measure_detail::ParallelErrors errors;
-#pragma omp parallel default(none) shared(tris, tested, near, keep, n, grow, errors)
+#pragma omp parallel default(none) shared(faces, tested, near, keep, n, grow, errors)
   {
     std::vector<std::int64_t> hit;  // one per thread: at most one face a query
 #pragma omp for schedule(dynamic, 4096)
     for (long long k = 0; k < n; ++k) {
       errors.run([&] {
-        const Tri& t = tris[static_cast<std::size_t>(tested[static_cast<std::size_t>(k)])];
+        double tlo[3], thi[3];
+        faces.box(static_cast<std::size_t>(tested[static_cast<std::size_t>(k)]), tlo, thi);
         Eigen::Vector3d lo, hi;
         for (int c = 0; c < 3; ++c) {
-          lo[c] = std::min({t.p[c], t.p[3 + c], t.p[6 + c]}) - grow;
-          hi[c] = std::max({t.p[c], t.p[3 + c], t.p[6 + c]}) + grow;
+          lo[c] = tlo[c] - grow;
+          hi[c] = thi[c] + grow;
         }
         hit.clear();
         near.overlapping(lo, hi, hit, 1);
@@ -603,42 +677,29 @@ SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& opti
     }
   }
   if (nf == 0 || (faces && faces->empty())) return r;
-  // The prepared triangles (128 bytes a face) and the box tree (about 80).
-  requireMemory(options.limits, "self-intersection test", 210.0 * static_cast<double>(nf),
+  // Tolerances and the tested list (16 bytes a face), the welded ids, and the box tree: sort keys (16),
+  // leaf boxes, faces and codes (36), nodes (32 each, fewer than one a face on meshes, at most two).
+  requireMemory(options.limits, "self-intersection test", 140.0 * static_cast<double>(nf),
                 "the mesh's " + std::to_string(nf) + " faces", "check a simplified mesh (mesh --max-triangles)");
   const std::vector<std::int32_t> welded = weldedIds(mesh);
-  std::vector<Tri> tris(nf);
-  const std::int32_t* f = mesh.faces.data();
-  const double* v = mesh.vertices.data();
-  for (std::size_t i = 0; i < nf; ++i) {
-    Tri& t = tris[i];
-    for (std::size_t k = 0; k < 3; ++k) {
-      const auto idx = static_cast<std::size_t>(f[3 * i + k]);
-      t.id[k] = welded[idx];
-      for (std::size_t c = 0; c < 3; ++c) t.p[3 * k + c] = v[3 * idx + c];
-    }
-    double ab[3], ac[3], bc[3];
-    sub(t.p + 3, t.p, ab);
-    sub(t.p + 6, t.p, ac);
-    sub(t.p + 6, t.p + 3, bc);
-    cross(ab, ac, t.n);
-    const double len = std::sqrt(norm2(t.n));
-    const double longest = std::sqrt(std::max({norm2(ab), norm2(ac), norm2(bc)}));
-    t.tol = kRelTol * longest;
-    t.skip = t.id[0] == t.id[1] || t.id[1] == t.id[2] || t.id[0] == t.id[2] || !(len > 1e-12 * longest * longest);
-    if (!t.skip) {
-      for (double& x : t.n) x /= len;
-    }
-  }
+  const FaceSource source{mesh.faces.data(), mesh.vertices.data(), welded.data()};
   // The tree holds only the triangles tested (degenerate ones are skipped), so that the per-face bound
   // below is spent on real candidates.
+  // Each face's tolerance (negative: degenerate, skipped) decides a pair's owner before the candidate is
+  // prepared.
+  std::vector<double> tol(nf);
   std::vector<std::int64_t> tested;
   for (std::size_t i = 0; i < nf; ++i) {
-    if (!tris[i].skip) tested.push_back(static_cast<std::int64_t>(i));
+    const Tri t = source.tri(i);
+    tol[i] = t.skip ? -1.0 : t.tol;
+    if (!t.skip) tested.push_back(static_cast<std::int64_t>(i));
   }
-  if (faces) tested = nearAsked(tris, asked, tested);
+  // A small subset (the projection's later undo rounds) builds its tree over the asked faces'
+  // neighbourhood; a large one (its first round: the faces around every moved vertex) over every face, as
+  // the neighbourhood search would cost more than it saves.
+  if (faces && faces->size() <= nf / 16) tested = nearAsked(source, asked, tested);
   if (tested.empty()) return r;
-  const BoxTree tree(tris, tested);
+  const BoxTree tree(source, tested);
   // Each face examines at most `perFace` candidates (a deterministic prefix in tree order), so the work is
   // at most max(1024·#F, budget) pair tests. Pairs are counted, not stored: each thread keeps only its
   // smallest `listed` pairs for the examples.
@@ -651,7 +712,7 @@ SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& opti
   measure_detail::ParallelErrors errors;
   const auto nfl = static_cast<long long>(nf);
   const bool subset = faces != nullptr;
-#pragma omp parallel default(none) shared(tris, tested, tree, examples, nfl, perFace, listed, errors, asked, subset) \
+#pragma omp parallel default(none) shared(source, tol, tested, tree, examples, nfl, perFace, listed, errors, asked, subset) \
     reduction(+ : count) reduction(&& : complete)
   {
     // Exceptions (bad_alloc) are caught per iteration: one leaving the loop would skip its barrier.
@@ -665,8 +726,8 @@ SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& opti
     };
 #pragma omp for schedule(dynamic, 512)
     for (long long ii = 0; ii < nfl; ++ii) {
-      const Tri& s = tris[static_cast<std::size_t>(ii)];
-      if (s.skip || (subset && !asked[static_cast<std::size_t>(ii)])) continue;
+      if (tol[static_cast<std::size_t>(ii)] < 0.0 || (subset && !asked[static_cast<std::size_t>(ii)])) continue;
+      const Tri s = source.tri(static_cast<std::size_t>(ii));
       errors.run([&] {
         double lo[3], hi[3];
         for (int c = 0; c < 3; ++c) {
@@ -677,11 +738,12 @@ SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& opti
         if (!tree.overlapping(lo, hi, candidates, perFace)) complete = false;
         for (const std::int64_t j : candidates) {
           if (j == ii) continue;
-          const Tri& t = tris[static_cast<std::size_t>(j)];
           // The triangle with the larger tolerance (its box query is the wider one) owns the pair; with a
           // subset, a face not asked about owns nothing.
           const bool tAsked = !subset || asked[static_cast<std::size_t>(j)];
-          if (tAsked && (t.tol > s.tol || (t.tol == s.tol && j < ii))) continue;
+          const double tTol = tol[static_cast<std::size_t>(j)];
+          if (tAsked && (tTol > s.tol || (tTol == s.tol && j < ii))) continue;
+          const Tri t = source.tri(static_cast<std::size_t>(j));
           if (!pairIntersect(s, t, tAsked ? s.tol : std::max(s.tol, t.tol))) continue;
           ++count;
           if (listed == 0) continue;

@@ -474,12 +474,22 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
     co.limits = o.limits;
     std::vector<char> back(w.v.size(), 0);
     std::size_t reverted = 0;
-    // Round 0 tests every pair. A pair can only start (or keep) intersecting when one of its faces has a
-    // vertex that moved since, so each later round tests only the faces around the vertices the round
-    // before moved back (every pair of theirs, against the whole mesh).
+    // A pair can only start (or keep) intersecting when one of its faces has a vertex that moved since.
+    // So round 0 asks about the faces with a vertex away from where the extraction put it (a pair of faces
+    // neither of which moved crosses on the extracted surface itself, which no undo changes), and each
+    // later round about the faces around the vertices the round before moved back (every pair of theirs,
+    // against the whole mesh).
     std::vector<std::int64_t> asked;
-    for (int round = 0; round < 12; ++round) {
-      const SelfIntersections c = findSelfIntersections(out.mesh, co, round == 0 ? nullptr : &asked);
+    for (std::size_t face = 0; face < w.f.size(); ++face) {
+      for (const Index vtx : w.f[face]) {
+        if (w.v[static_cast<std::size_t>(vtx)] != w.extracted[static_cast<std::size_t>(vtx)]) {
+          asked.push_back(static_cast<std::int64_t>(face));
+          break;
+        }
+      }
+    }
+    for (int round = 0; round < 12 && !asked.empty(); ++round) {
+      const SelfIntersections c = findSelfIntersections(out.mesh, co, &asked);
       if (round == 0) rep.selfIntersectionsFound = c.count;
       std::vector<Index> seeds;
       for (const auto& [x, y] : c.pairs) {
@@ -494,11 +504,7 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
           for (const Index vtx : t) seeds.push_back(vtx);
         }
       };
-      if (round == 0) {
-        for (std::size_t face = 0; face < w.f.size(); ++face) degenerate(face);
-      } else {
-        for (const std::int64_t face : asked) degenerate(static_cast<std::size_t>(face));
-      }
+      for (const std::int64_t face : asked) degenerate(static_cast<std::size_t>(face));
       if (seeds.empty()) break;
       if (reverted == w.v.size()) break;  // the extracted surface itself (its own crossings are not ours)
       const bool all = round == 11;

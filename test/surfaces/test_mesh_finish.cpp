@@ -599,4 +599,34 @@ TEST_CASE("projection undoes the moves that make two sheets cross, testing only 
   CHECK(farOnLevel == far);
 }
 
+TEST_CASE("projection leaves crossings of the extracted surface alone: only what it moved is undone") {
+  // Two coplanar sheets overlapping over x in [0.5, 1] on the level set z = 0.2 (crossing pairs that no
+  // vertex move made), and a third sheet at z = 0.15 far from them, which the projection moves onto the
+  // level set without crossing anything. The undo must not take the third sheet back (the old first round
+  // tested every pair, seeded the unmoved pairs and widened its rings until the last round moved every
+  // vertex back).
+  const Mesh m = joined(joined(gridSheet(0.0, 1.0, 0.2, 10), gridSheet(0.5, 1.0, 0.2, 10)), gridSheet(3.0, 1.0, 0.15, 10));
+  const FieldGradientSampler sampler = [](const Points& q, Eigen::VectorXd& v, Points& g) {
+    v = 0.2 - q.col(2).array();
+    g = Points::Zero(q.rows(), 3);
+    g.col(2).setConstant(-1.0);
+  };
+  CheckOptions all;
+  all.listedPairs = std::numeric_limits<std::size_t>::max();
+  const SelfIntersections before = findSelfIntersections(m, all);
+  REQUIRE(before.count > 50);
+  const ProjectResult p = projectToLevelSet(sampler, m, 0.0, 1.0, ProjectOptions{});
+  CHECK(p.report.moved == 121);
+  CHECK(p.report.selfIntersectionsFound == 0);
+  CHECK(p.report.reverted == 0);
+  const SelfIntersections after = findSelfIntersections(p.mesh, all);
+  CHECK(after.pairs == before.pairs);
+  int moved = 0;
+  for (Eigen::Index v = 0; v < p.mesh.vertices.rows(); ++v) {
+    CHECK(std::abs(p.mesh.vertices(v, 2) - 0.2) <= 1e-12);
+    moved += p.mesh.vertices(v, 0) >= 3.0 ? 1 : 0;
+  }
+  CHECK(moved == 121);
+}
+
 }  // TEST_SUITE
