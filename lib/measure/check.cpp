@@ -82,12 +82,21 @@ std::size_t countBoundaryLoops(const Mesh& mesh) {
   return static_cast<std::size_t>(std::unique(roots.begin(), roots.end()) - roots.begin());
 }
 
-/// Vertex ids with vertices at identical positions merged (the smallest index of each position).
-std::vector<std::int32_t> weldedIds(const Mesh& mesh) {
+/// Vertex ids with vertices at identical positions merged (the smallest index of each position), of the
+/// vertices marked in `used` (all when null; the others get -1). Among the marked vertices, two get the
+/// same id exactly when they are at the same position, as over the whole mesh.
+std::vector<std::int32_t> weldedIds(const Mesh& mesh, const std::vector<char>* used = nullptr) {
   const auto nv = static_cast<std::size_t>(mesh.vertices.rows());
   const double* v = mesh.vertices.data();
-  std::vector<std::int32_t> order(nv);
-  std::iota(order.begin(), order.end(), 0);
+  std::vector<std::int32_t> order;
+  if (used) {
+    for (std::size_t i = 0; i < nv; ++i) {
+      if ((*used)[i]) order.push_back(static_cast<std::int32_t>(i));
+    }
+  } else {
+    order.resize(nv);
+    std::iota(order.begin(), order.end(), 0);
+  }
   auto less = [v](std::int32_t a, std::int32_t b) {
     const double* pa = v + 3 * static_cast<std::size_t>(a);
     const double* pb = v + 3 * static_cast<std::size_t>(b);
@@ -97,11 +106,12 @@ std::vector<std::int32_t> weldedIds(const Mesh& mesh) {
     return a < b;
   };
   std::sort(order.begin(), order.end(), less);
-  std::vector<std::int32_t> id(nv);
-  for (std::size_t i = 0; i < nv;) {
+  std::vector<std::int32_t> id(nv, -1);
+  const std::size_t n = order.size();
+  for (std::size_t i = 0; i < n;) {
     std::size_t j = i + 1;
     const double* pi = v + 3 * static_cast<std::size_t>(order[i]);
-    while (j < nv) {
+    while (j < n) {
       const double* pj = v + 3 * static_cast<std::size_t>(order[j]);
       if (pi[0] != pj[0] || pi[1] != pj[1] || pi[2] != pj[2]) break;
       ++j;
@@ -142,6 +152,15 @@ struct FaceSource {
       lo[c] = std::min({p[c], p[3 + c], p[6 + c]});
       hi[c] = std::max({p[c], p[3 + c], p[6 + c]});
     }
+  }
+  /// The face's tolerance (as tri(i).tol, without the welded ids).
+  double tolOf(std::size_t i) const {
+    double p[9], ab[3], ac[3], bc[3];
+    corners(i, p);
+    sub(p + 3, p, ab);
+    sub(p + 6, p, ac);
+    sub(p + 6, p + 3, bc);
+    return kRelTol * std::sqrt(std::max({norm2(ab), norm2(ac), norm2(bc)}));
   }
   Tri tri(std::size_t i) const {
     Tri t{};
@@ -607,14 +626,16 @@ std::vector<std::int64_t> nearAsked(const FaceSource& faces, const std::vector<c
   double grow = 0.0;
   for (const std::int64_t i : tested) {
     if (!asked[static_cast<std::size_t>(i)]) continue;
-    const Tri s = faces.tri(static_cast<std::size_t>(i));
+    double lo[3], hi[3];
+    faces.box(static_cast<std::size_t>(i), lo, hi);
+    const double tol = faces.tolOf(static_cast<std::size_t>(i));
     std::array<double, 6> b{};
     for (int c = 0; c < 3; ++c) {
-      b[static_cast<std::size_t>(c)] = std::min({s.p[c], s.p[3 + c], s.p[6 + c]}) - s.tol;
-      b[static_cast<std::size_t>(3 + c)] = std::max({s.p[c], s.p[3 + c], s.p[6 + c]}) + s.tol;
+      b[static_cast<std::size_t>(c)] = lo[c] - tol;
+      b[static_cast<std::size_t>(3 + c)] = hi[c] + tol;
     }
     rows.push_back(b);
-    grow = std::max(grow, s.tol);
+    grow = std::max(grow, tol);
   }
   if (rows.empty()) return {};
   const auto m = static_cast<Eigen::Index>(rows.size());
@@ -681,23 +702,39 @@ SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& opti
   // leaf boxes, faces and codes (36), nodes (32 each, fewer than one a face on meshes, at most two).
   requireMemory(options.limits, "self-intersection test", 140.0 * static_cast<double>(nf),
                 "the mesh's " + std::to_string(nf) + " faces", "check a simplified mesh (mesh --max-triangles)");
-  const std::vector<std::int32_t> welded = weldedIds(mesh);
+  // A small subset (the projection's later undo rounds) is looked at only within its faces'
+  // neighbourhood: the tree, the tolerances and the welded ids cover those faces only. A large one (its
+  // first round: the faces around every moved vertex) takes every face, as the neighbourhood search would
+  // cost more than it saves.
+  const bool local = faces && faces->size() <= nf / 16;
+  std::vector<std::int64_t> tested;
+  std::vector<char> usedVertex;
+  if (local) {
+    std::vector<std::int64_t> every(nf);
+    std::iota(every.begin(), every.end(), std::int64_t{0});
+    tested = nearAsked(FaceSource{mesh.faces.data(), mesh.vertices.data(), nullptr}, asked, every);
+    usedVertex.assign(static_cast<std::size_t>(mesh.vertices.rows()), 0);
+    for (const std::int64_t i : tested) {
+      for (Eigen::Index k = 0; k < 3; ++k) usedVertex[static_cast<std::size_t>(mesh.faces(static_cast<Eigen::Index>(i), k))] = 1;
+    }
+  } else {
+    tested.resize(nf);
+    std::iota(tested.begin(), tested.end(), std::int64_t{0});
+  }
+  const std::vector<std::int32_t> welded = weldedIds(mesh, local ? &usedVertex : nullptr);
   const FaceSource source{mesh.faces.data(), mesh.vertices.data(), welded.data()};
   // The tree holds only the triangles tested (degenerate ones are skipped), so that the per-face bound
-  // below is spent on real candidates.
-  // Each face's tolerance (negative: degenerate, skipped) decides a pair's owner before the candidate is
-  // prepared.
-  std::vector<double> tol(nf);
-  std::vector<std::int64_t> tested;
-  for (std::size_t i = 0; i < nf; ++i) {
-    const Tri t = source.tri(i);
-    tol[i] = t.skip ? -1.0 : t.tol;
-    if (!t.skip) tested.push_back(static_cast<std::int64_t>(i));
+  // below is spent on real candidates. Each face's tolerance (negative: degenerate or not looked at)
+  // decides a pair's owner before the candidate is prepared.
+  std::vector<double> tol(nf, -1.0);
+  std::size_t kept = 0;
+  for (const std::int64_t i : tested) {
+    const Tri t = source.tri(static_cast<std::size_t>(i));
+    if (t.skip) continue;
+    tol[static_cast<std::size_t>(i)] = t.tol;
+    tested[kept++] = i;
   }
-  // A small subset (the projection's later undo rounds) builds its tree over the asked faces'
-  // neighbourhood; a large one (its first round: the faces around every moved vertex) over every face, as
-  // the neighbourhood search would cost more than it saves.
-  if (faces && faces->size() <= nf / 16) tested = nearAsked(source, asked, tested);
+  tested.resize(kept);
   if (tested.empty()) return r;
   const BoxTree tree(source, tested);
   // Each face examines at most `perFace` candidates (a deterministic prefix in tree order), so the work is
