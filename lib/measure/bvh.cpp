@@ -1,4 +1,4 @@
-// TriangleBvh: build by object-median splits (parallel over subtrees with OpenMP tasks), exact
+// TriangleBvh: build in Morton order with radix splits (spatial/morton.hpp), exact
 // closest-point queries by best-first descent with box pruning, box-overlap queries; and the exact
 // point-triangle closest point (Voronoi regions of the triangle, after Ericson, Real-Time Collision
 // Detection §5.1.5, re-derived here), with an edge fallback for degenerate triangles.
@@ -11,7 +11,7 @@
 #include "duplexfit/error.hpp"
 #include "measure/bvh_data.hpp"
 #include "measure/geometry.hpp"
-#include "measure/median_split.hpp"
+#include "spatial/morton.hpp"
 #include "measure/parallel_errors.hpp"
 
 namespace duplexfit {
@@ -153,46 +153,25 @@ ClosestPoint closestPointOnTriangle(const Eigen::Vector3d& q, const Eigen::Vecto
 namespace {
 
 constexpr std::uint32_t kLeafSize = 4;
-constexpr std::size_t kParallelBuild = 16384;  // subtrees at least this large become OpenMP tasks
+constexpr std::size_t kExactCoin = 32;  // nodes of at most this many triangles get coins from their corners
 
 using Node = TriangleBvh::Data::Node;
 
-using NodeCounts = measure_detail::MedianSplitCounts;
-
+/// Builds the tree over the triangles in leaf order (their corners in d.corners, their Morton codes in
+/// `code`): radix splits (spatial/morton.hpp), each node's box the union of its children's, its coin's
+/// axis the sum of its triangles' area vectors. A node of at most kExactCoin triangles gets its coin's
+/// height and radius from its corners; a larger one bounds them from its children's coins and its box's
+/// corners (the smaller of the two bounds), which is looser but costs nothing a triangle.
 struct Builder {
-  const double* corners;   // 9 per face, mesh order
-  const double* centroids; // 3 per face
-  std::uint32_t* order;
-  Node* nodes;
-  const NodeCounts* counts;
-  measure_detail::ParallelErrors* errors;  // of the parallel build's tasks
+  TriangleBvh::Data& d;
+  const std::uint32_t* code;
+  int depth = 0;
 
-  /// The node's coin: axis = normalised sum of the (area-weighted) triangle normals, centre = box
-  /// centre, then the largest axial and radial offsets of the corners (slightly inflated).
-  void coin(Node& n, std::size_t begin, std::size_t end) const {
-    double axis[3] = {0.0, 0.0, 0.0};
-    for (std::size_t i = begin; i < end; ++i) {
-      const double* t = corners + 9 * std::size_t{order[i]};
-      double ab[3], ac[3], nn[3];
-      geom::sub(t + 3, t, ab);
-      geom::sub(t + 6, t, ac);
-      geom::cross(ab, ac, nn);
-      for (int k = 0; k < 3; ++k) axis[k] += nn[k];
-    }
-    double len = std::sqrt(geom::norm2(axis));
-    if (!(len > 0.0) || !std::isfinite(len)) {
-      axis[0] = 0.0;
-      axis[1] = 0.0;
-      axis[2] = 1.0;
-      len = 1.0;
-    }
-    for (int k = 0; k < 3; ++k) {
-      n.n[k] = axis[k] / len;
-      n.c[k] = 0.5 * (n.lo[k] + n.hi[k]);
-    }
+  /// Height and radius of the triangles [begin, end) around the node's axis through its centre.
+  void exactCoin(Node& n, std::size_t begin, std::size_t end) const {
     double height = 0.0, radius2 = 0.0;
     for (std::size_t i = begin; i < end; ++i) {
-      const double* t = corners + 9 * std::size_t{order[i]};
+      const double* t = d.triangle(i);
       for (int v = 0; v < 3; ++v) {
         double w[3];
         geom::sub(t + 3 * v, n.c, w);
@@ -201,51 +180,104 @@ struct Builder {
         radius2 = std::max(radius2, geom::norm2(w) - h * h);
       }
     }
-    // Inflate by a few ulps of the node's size so that rounding in the query never cuts a triangle off.
+    inflate(n, height, std::sqrt(std::max(radius2, 0.0)));
+  }
+  /// Inflates by a few ulps of the node's size so that rounding in the query never cuts a triangle off.
+  static void inflate(Node& n, double height, double radius) {
     const double size = std::sqrt(geom::dist2(n.lo, n.hi));
     n.halfHeight = height * (1.0 + 1e-12) + 1e-14 * size;
-    n.rho = std::sqrt(std::max(radius2, 0.0)) * (1.0 + 1e-12) + 1e-14 * size;
+    n.rho = radius * (1.0 + 1e-12) + 1e-14 * size;
+  }
+  /// Sets the coin's centre (the box's) and axis (normalised `axis`, +z when it has no direction).
+  static void coinAxis(Node& n, const double axis[3]) {
+    const double len = std::sqrt(geom::norm2(axis));
+    const bool none = !(len > 0.0) || !std::isfinite(len);
+    for (int k = 0; k < 3; ++k) {
+      n.n[k] = none ? (k == 2 ? 1.0 : 0.0) : axis[k] / len;
+      n.c[k] = 0.5 * (n.lo[k] + n.hi[k]);
+    }
   }
 
-  void build(std::size_t node, std::size_t begin, std::size_t end) {
-    Node& n = nodes[node];
-    double clo[3], chi[3];
-    for (int k = 0; k < 3; ++k) {
-      n.lo[k] = clo[k] = std::numeric_limits<double>::infinity();
-      n.hi[k] = chi[k] = -std::numeric_limits<double>::infinity();
-    }
-    for (std::size_t i = begin; i < end; ++i) {
-      const double* t = corners + 9 * std::size_t{order[i]};
-      const double* c = centroids + 3 * std::size_t{order[i]};
-      for (int k = 0; k < 3; ++k) {
-        n.lo[k] = std::min({n.lo[k], t[k], t[3 + k], t[6 + k]});
-        n.hi[k] = std::max({n.hi[k], t[k], t[3 + k], t[6 + k]});
-        clo[k] = std::min(clo[k], c[k]);
-        chi[k] = std::max(chi[k], c[k]);
-      }
-    }
-    coin(n, begin, end);
+  /// Builds the subtree of triangles [begin, end) at d.nodes.size(); `axis` gets the sum of their area
+  /// vectors.
+  void build(std::size_t begin, std::size_t end, int level, double axis[3]) {
+    depth = std::max(depth, level);
+    const std::size_t self = d.nodes.size();
+    d.nodes.push_back(Node{});
     const std::size_t count = end - begin;
-    if (count <= kLeafSize) {
+    if (count <= kLeafSize || level >= detail::kMortonTreeDepth) {
+      Node n{};
+      for (int k = 0; k < 3; ++k) {
+        n.lo[k] = std::numeric_limits<double>::infinity();
+        n.hi[k] = -std::numeric_limits<double>::infinity();
+        axis[k] = 0.0;
+      }
+      for (std::size_t i = begin; i < end; ++i) {
+        const double* t = d.triangle(i);
+        double ab[3], ac[3], nn[3];
+        geom::sub(t + 3, t, ab);
+        geom::sub(t + 6, t, ac);
+        geom::cross(ab, ac, nn);
+        for (int k = 0; k < 3; ++k) {
+          n.lo[k] = std::min({n.lo[k], t[k], t[3 + k], t[6 + k]});
+          n.hi[k] = std::max({n.hi[k], t[k], t[3 + k], t[6 + k]});
+          axis[k] += nn[k];
+        }
+      }
+      coinAxis(n, axis);
+      exactCoin(n, begin, end);
       n.index = static_cast<std::uint32_t>(begin);
       n.count = static_cast<std::uint32_t>(count);
+      d.nodes[self] = n;
       return;
     }
-    const std::size_t mid = measure_detail::medianSplit(order, begin, end, centroids, clo, chi);
-    const std::size_t left = node + 1;
-    const std::size_t right = left + (*counts)(mid - begin);
+    const std::size_t mid = detail::radixSplit(code, begin, end);
+    double al[3], ar[3];
+    build(begin, mid, level + 1, al);
+    const std::size_t right = d.nodes.size();
+    build(mid, end, level + 1, ar);
+    const Node& l = d.nodes[self + 1];
+    const Node& r = d.nodes[right];
+    Node n{};
+    for (int k = 0; k < 3; ++k) {
+      n.lo[k] = std::min(l.lo[k], r.lo[k]);
+      n.hi[k] = std::max(l.hi[k], r.hi[k]);
+      axis[k] = al[k] + ar[k];
+    }
+    coinAxis(n, axis);
+    if (count <= kExactCoin) {
+      exactCoin(n, begin, end);
+    } else {
+      // A child's coin (centre c', axis n', radius ρ', half-height h') lies within |(c' − c)·n| + h'cosθ +
+      // ρ'sinθ of this coin's mid-plane and within |(c' − c)⊥| + h'sinθ + ρ' of its axis (θ between the
+      // axes).
+      double height = 0.0, radius = 0.0;
+      for (const Node* ch : {&l, &r}) {
+        double dc[3];
+        geom::sub(ch->c, n.c, dc);
+        const double a = geom::dot(dc, n.n);
+        const double cosT = std::min(1.0, std::abs(geom::dot(ch->n, n.n)));
+        const double sinT = std::sqrt(std::max(0.0, 1.0 - cosT * cosT));
+        const double radial = std::sqrt(std::max(0.0, geom::norm2(dc) - a * a));
+        height = std::max(height, std::abs(a) + ch->halfHeight * cosT + ch->rho * sinT);
+        radius = std::max(radius, radial + ch->halfHeight * sinT + ch->rho);
+      }
+      // The box's corners bound them too.
+      double boxHeight = 0.0, boxRadius2 = 0.0;
+      for (int corner = 0; corner < 8; ++corner) {
+        const double b[3] = {(corner & 1) != 0 ? n.hi[0] : n.lo[0], (corner & 2) != 0 ? n.hi[1] : n.lo[1],
+                             (corner & 4) != 0 ? n.hi[2] : n.lo[2]};
+        double w[3];
+        geom::sub(b, n.c, w);
+        const double h = geom::dot(w, n.n);
+        boxHeight = std::max(boxHeight, std::abs(h));
+        boxRadius2 = std::max(boxRadius2, geom::norm2(w) - h * h);
+      }
+      inflate(n, std::min(height, boxHeight), std::min(radius, std::sqrt(std::max(boxRadius2, 0.0))));
+    }
     n.index = static_cast<std::uint32_t>(right);
     n.count = 0;
-    if (count >= kParallelBuild) {
-#pragma omp task firstprivate(left, begin, mid)
-      errors->run([&] { build(left, begin, mid); });
-#pragma omp task firstprivate(right, mid, end)
-      errors->run([&] { build(right, mid, end); });
-#pragma omp taskwait
-    } else {
-      build(left, begin, mid);
-      build(right, mid, end);
-    }
+    d.nodes[self] = n;
   }
 };
 
@@ -258,8 +290,6 @@ TriangleBvh::TriangleBvh(const Mesh& mesh) {
   if (nf >= std::numeric_limits<std::uint32_t>::max() / 4) {
     throw InvalidArgument("TriangleBvh: too many faces (" + std::to_string(nf) + ")");
   }
-  auto data = std::make_shared<Data>();
-  std::vector<double> corners(9 * nf), centroids(3 * nf);
   const double* v = mesh.vertices.data();
   const std::int32_t* f = mesh.faces.data();
   for (std::size_t i = 0; i < nf; ++i) {
@@ -270,41 +300,32 @@ TriangleBvh::TriangleBvh(const Mesh& mesh) {
                               " out of range (mesh has " + std::to_string(nv) + " vertices)");
       }
       for (std::size_t c = 0; c < 3; ++c) {
-        const double x = v[3 * static_cast<std::size_t>(idx) + c];
-        if (!std::isfinite(x)) {
+        if (!std::isfinite(v[3 * static_cast<std::size_t>(idx) + c])) {
           throw InvalidArgument("TriangleBvh: vertex " + std::to_string(idx) + " is not finite");
         }
-        corners[9 * i + 3 * static_cast<std::size_t>(k) + c] = x;
       }
     }
-    for (int c = 0; c < 3; ++c) {
-      centroids[3 * i + static_cast<std::size_t>(c)] =
-          (corners[9 * i + static_cast<std::size_t>(c)] + corners[9 * i + 3 + static_cast<std::size_t>(c)] +
-           corners[9 * i + 6 + static_cast<std::size_t>(c)]) / 3.0;
-    }
   }
-  std::vector<std::uint32_t> order(nf);
-  std::iota(order.begin(), order.end(), 0U);
-  const NodeCounts counts(nf, kLeafSize);
-  data->nodes.resize(counts(nf));
-  data->depth = counts.depth(nf);
-  measure_detail::ParallelErrors errors;
-  Builder builder{corners.data(), centroids.data(), order.data(), data->nodes.data(), &counts, &errors};
-  if (nf >= kParallelBuild) {
-#pragma omp parallel default(none) shared(builder, nf, errors)
-#pragma omp single
-    errors.run([&] { builder.build(0, 0, nf); });
-    errors.rethrow();
-  } else {
-    builder.build(0, 0, nf);
-  }
+  const auto corner = [v, f](std::size_t face, int k, int c) {
+    return v[3 * static_cast<std::size_t>(f[3 * face + static_cast<std::size_t>(k)]) + static_cast<std::size_t>(c)];
+  };
+  // The triangles in the Morton order of their centroids.
+  const std::vector<std::uint64_t> key = detail::mortonSortedKeys(nf, [&corner](std::size_t i, double* x) {
+    for (int c = 0; c < 3; ++c) x[c] = (corner(i, 0, c) + corner(i, 1, c) + corner(i, 2, c)) / 3.0;
+  });
+  auto data = std::make_shared<Data>();
   data->corners.resize(9 * nf);
   data->normals.assign(3 * nf, 0.0);
   data->faceOf.resize(nf);
+  std::vector<std::uint32_t> code(nf);
   for (std::size_t k = 0; k < nf; ++k) {
+    const auto face = static_cast<std::size_t>(key[k] & 0xffffffffU);
+    code[k] = static_cast<std::uint32_t>(key[k] >> 32);
     double* t = data->corners.data() + 9 * k;
-    std::copy_n(corners.data() + 9 * std::size_t{order[k]}, 9, t);
-    data->faceOf[k] = order[k];
+    for (int j = 0; j < 3; ++j) {
+      for (int c = 0; c < 3; ++c) t[3 * j + c] = corner(face, j, c);
+    }
+    data->faceOf[k] = static_cast<std::int64_t>(face);
     double ab[3], ac[3], n[3];
     geom::sub(t + 3, t, ab);
     geom::sub(t + 6, t, ac);
@@ -314,6 +335,11 @@ TriangleBvh::TriangleBvh(const Mesh& mesh) {
       for (std::size_t c = 0; c < 3; ++c) data->normals[3 * k + c] = n[c] / len;
     }
   }
+  data->nodes.reserve(nf);  // fewer nodes than triangles on meshes (leaves of up to kLeafSize)
+  Builder builder{*data, code.data()};
+  double axis[3];
+  builder.build(0, nf, 1, axis);
+  data->depth = builder.depth;
   data_ = std::move(data);
 }
 

@@ -18,6 +18,7 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/measure.hpp"
 #include "measure/geometry.hpp"
+#include "spatial/morton.hpp"
 #include "measure/parallel_errors.hpp"
 
 namespace duplexfit {
@@ -360,14 +361,12 @@ bool pairIntersect(const Tri& s, const Tri& t, double tol) {
   return true;  // the same three vertices: a duplicate face
 }
 
-/// The pair search's tree of boxes over the tested triangles. The triangles are ordered by the Morton code
-/// of their box centres (10 bits an axis over the centres' extent, a stable radix sort, so ties keep face
-/// order) and each node splits its range where the codes' highest differing bit changes (the middle where
-/// the codes are equal): an octree-like tree of compact nodes built in linear time, with no geometric
-/// sorting. Nodes depth-first with the left child next to its parent, at most kBoxLeaf triangles a leaf,
-/// boxes in float rounded outward (a superset of the double boxes' overlaps; each candidate is then tested
-/// on its exact double box). About 60 bytes a triangle. The object-median build it replaced (TriangleBvh's
-/// splits) took 1.6 s of fandisk_550k's 3.7M-triangle zero mesh's 3.6 s pair search (docs/benchmarks.md).
+/// The pair search's tree of boxes over the tested triangles, in the Morton order of their box centres
+/// with radix splits (spatial/morton.hpp). Nodes depth-first with the left child next to its parent, at
+/// most kBoxLeaf triangles a leaf, boxes in float rounded outward (a superset of the double boxes'
+/// overlaps; each candidate is then tested on its exact double box). About 60 bytes a triangle. The
+/// object-median build it replaced took 1.6 s of the 3.6 s pair search of fandisk_550k's 3.7M-triangle
+/// zero mesh inside a fit (docs/benchmarks.md).
 class BoxTree {
  public:
   BoxTree(const FaceSource& faces, const std::vector<std::int64_t>& tested) : faces_(faces) {
@@ -375,49 +374,11 @@ class BoxTree {
     if (m >= std::numeric_limits<std::uint32_t>::max() / 2) {
       throw InvalidArgument("self-intersections: too many faces (" + std::to_string(m) + ")");
     }
-    // The box centres' extent, then their Morton codes (code << 32 | entry), sorted by code with a stable
-    // LSD radix sort; the leaf boxes are then made in sorted order (no per-entry arrays but the keys).
-    double clo[3], chi[3];
-    for (int c = 0; c < 3; ++c) {
-      clo[c] = std::numeric_limits<double>::infinity();
-      chi[c] = -std::numeric_limits<double>::infinity();
-    }
-    const auto centre = [&faces, &tested](std::size_t i, double* x) {
+    std::vector<std::uint64_t> key = detail::mortonSortedKeys(m, [&faces, &tested](std::size_t i, double* x) {
       double lo[3], hi[3];
       faces.box(static_cast<std::size_t>(tested[i]), lo, hi);
       for (int c = 0; c < 3; ++c) x[c] = 0.5 * (lo[c] + hi[c]);
-    };
-    for (std::size_t i = 0; i < m; ++i) {
-      double x[3];
-      centre(i, x);
-      for (int c = 0; c < 3; ++c) {
-        clo[c] = std::min(clo[c], x[c]);
-        chi[c] = std::max(chi[c], x[c]);
-      }
-    }
-    std::vector<std::uint64_t> key(m);
-    double scale[3];
-    for (int c = 0; c < 3; ++c) scale[c] = chi[c] > clo[c] ? 1023.999 / (chi[c] - clo[c]) : 0.0;
-    for (std::size_t i = 0; i < m; ++i) {
-      double x[3];
-      centre(i, x);
-      std::uint32_t code = 0;
-      for (int c = 0; c < 3; ++c) {
-        const auto q = static_cast<std::uint32_t>(std::clamp((x[c] - clo[c]) * scale[c], 0.0, 1023.0));
-        code |= spread(q) << (2 - c);
-      }
-      key[i] = (std::uint64_t{code} << 32) | i;
-    }
-    {
-      std::vector<std::uint64_t> tmp(m);
-      for (int shift = 32; shift < 62; shift += 10) {
-        std::size_t bucket[1025] = {};
-        for (const std::uint64_t k : key) ++bucket[((k >> shift) & 1023U) + 1];
-        for (std::size_t b = 1; b <= 1024; ++b) bucket[b] += bucket[b - 1];
-        for (const std::uint64_t k : key) tmp[bucket[(k >> shift) & 1023U]++] = k;
-        key.swap(tmp);
-      }
-    }
+    });
     leafBox_.resize(m);
     face_.resize(m);
     code_.resize(m);
@@ -435,7 +396,6 @@ class BoxTree {
     key = {};
     nodes_.reserve(2 * m);  // an upper bound (leaves of at least one entry); only what is used is touched
     if (m > 0) build(0, m, 0);
-
     code_ = {};
   }
 
@@ -475,9 +435,8 @@ class BoxTree {
 
  private:
   static constexpr std::size_t kBoxLeaf = 4;
-  // 30 code bits, then middle splits of at most 2^32 equal codes: the deepest path, and the query stack's
-  // bound (a query holds at most one pending right child a level).
-  static constexpr int kMaxDepth = 30 + 33;
+  // The query stack's bound: a query holds at most one pending right child a level.
+  static constexpr int kMaxDepth = detail::kMortonTreeDepth;
   struct Box {
     float lo[3], hi[3];
   };
@@ -486,15 +445,6 @@ class BoxTree {
     std::uint32_t index;  // leaf: first slot; inner: right child (left = this + 1)
     std::uint32_t count;  // leaf: faces; inner: 0
   };
-  /// The 10 bits of q spread to every third bit.
-  static std::uint32_t spread(std::uint32_t q) {
-    q &= 0x3ffU;
-    q = (q | (q << 16)) & 0x030000ffU;
-    q = (q | (q << 8)) & 0x0300f00fU;
-    q = (q | (q << 4)) & 0x030c30c3U;
-    q = (q | (q << 2)) & 0x09249249U;
-    return q;
-  }
   static float down(double x) {
     float f = static_cast<float>(x);
     if (static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
@@ -526,20 +476,7 @@ class BoxTree {
       nodes_[self] = Node{b, static_cast<std::uint32_t>(begin), static_cast<std::uint32_t>(count)};
       return b;
     }
-    // The first slot whose code differs from the first one's in the highest bit where the range's codes
-    // differ; the middle when they are all equal.
-    std::size_t mid = begin + count / 2;
-    const std::uint32_t first = code_[begin], last = code_[end - 1];
-    if (first != last) {
-      int bit = 31;
-      while (((first ^ last) >> bit) == 0) --bit;
-      const std::uint32_t mask = ~((std::uint32_t{1} << bit) - 1U);
-      const std::uint32_t upper = last & mask;
-      mid = static_cast<std::size_t>(
-          std::lower_bound(code_.begin() + static_cast<std::ptrdiff_t>(begin), code_.begin() + static_cast<std::ptrdiff_t>(end),
-                           upper) -
-          code_.begin());
-    }
+    const std::size_t mid = detail::radixSplit(code_.data(), begin, end);
     Box b = build(begin, mid, depth + 1);
     const auto right = static_cast<std::uint32_t>(nodes_.size());
     unite(b, build(mid, end, depth + 1));
