@@ -288,25 +288,33 @@ class Cleaner {
   /// every vertex whose faces do not form a single closed fan.
   void lockNonManifold() {
     locked_.assign(p_.size(), 0);
-    std::vector<std::pair<std::uint64_t, int>> edges;  // (undirected key, +1 for a < b / −1)
-    for (std::size_t i = 0; i < f_.size(); ++i) {
-      if (!alive_[i]) continue;
-      for (int k = 0; k < 3; ++k) {
-        const auto a = static_cast<std::uint64_t>(f_[i][static_cast<std::size_t>(k)]);
-        const auto b = static_cast<std::uint64_t>(f_[i][static_cast<std::size_t>((k + 1) % 3)]);
-        edges.emplace_back((std::min(a, b) << 32) | std::max(a, b), a < b ? 1 : -1);
+    // Every edge {a, b} with a < b, from a's faces: a manifold edge has exactly two directed copies, one
+    // each way; any other count locks both ends. (A mesh-wide sort of the directed edges took 0.4 s of
+    // cleaning a 4M-face mesh.)
+    std::vector<std::pair<int, int>> around;  // (b, +1 for a → b / −1 for b → a)
+    for (std::size_t a = 0; a < p_.size(); ++a) {
+      around.clear();
+      const int va = static_cast<int>(a);
+      for (const int f : vf_[a]) {
+        const Tri& t = f_[static_cast<std::size_t>(f)];
+        for (int k = 0; k < 3; ++k) {
+          if (t[static_cast<std::size_t>(k)] != va) continue;
+          const int next = t[static_cast<std::size_t>((k + 1) % 3)], prev = t[static_cast<std::size_t>((k + 2) % 3)];
+          if (next > va) around.emplace_back(next, 1);
+          if (prev > va) around.emplace_back(prev, -1);
+        }
       }
-    }
-    std::sort(edges.begin(), edges.end());
-    for (std::size_t i = 0; i < edges.size();) {
-      std::size_t j = i;
-      int sum = 0;
-      while (j < edges.size() && edges[j].first == edges[i].first) sum += edges[j++].second;
-      if (j - i != 2 || sum != 0) {
-        locked_[edges[i].first >> 32] = 1;
-        locked_[edges[i].first & 0xffffffffULL] = 1;
+      std::sort(around.begin(), around.end());
+      for (std::size_t i = 0; i < around.size();) {
+        std::size_t j = i;
+        int sum = 0;
+        while (j < around.size() && around[j].first == around[i].first) sum += around[j++].second;
+        if (j - i != 2 || sum != 0) {
+          locked_[a] = 1;
+          locked_[static_cast<std::size_t>(around[i].first)] = 1;
+        }
+        i = j;
       }
-      i = j;
     }
     for (std::size_t v = 0; v < p_.size(); ++v) {
       if (!locked_[v] && !vf_[v].empty() && !closedFan(static_cast<int>(v))) locked_[v] = 1;
