@@ -60,13 +60,6 @@ void checkIndices(const Mesh& mesh, const char* caller) {
   }
 }
 
-/// A directed face edge keyed by its undirected vertex pair.
-struct HalfEdge {
-  std::uint64_t key;   ///< (min << 32) | max
-  std::uint32_t face;  ///< face index
-  bool forward;        ///< traversed from the smaller to the larger index
-};
-
 }  // namespace
 
 MeshTopology analyzeTopology(const Mesh& mesh) {
@@ -80,9 +73,6 @@ MeshTopology analyzeTopology(const Mesh& mesh) {
   // Degenerate faces (a repeated index) are counted and otherwise ignored: they add no edges, fans,
   // components, vertices or faces to the Euler characteristic.
   std::vector<bool> valid(nf);
-  std::vector<HalfEdge> halfEdges;
-  halfEdges.reserve(3 * nf);
-  std::vector<bool> referenced(nv, false);
   std::vector<std::size_t> degree(nv + 1, 0);
   for (std::size_t f = 0; f < nf; ++f) {
     const std::int32_t* t = faces + 3 * f;
@@ -91,42 +81,9 @@ MeshTopology analyzeTopology(const Mesh& mesh) {
       continue;
     }
     valid[f] = true;
-    for (int k = 0; k < 3; ++k) {
-      const auto a = static_cast<std::uint32_t>(t[k]);
-      const auto b = static_cast<std::uint32_t>(t[(k + 1) % 3]);
-      const std::uint64_t lo = std::min(a, b), hi = std::max(a, b);
-      halfEdges.push_back({(lo << 32) | hi, static_cast<std::uint32_t>(f), a < b});
-      referenced[a] = true;
-      ++degree[a + 1];
-    }
+    for (int k = 0; k < 3; ++k) ++degree[static_cast<std::size_t>(t[k]) + 1];
   }
-  std::sort(halfEdges.begin(), halfEdges.end(), [](const HalfEdge& x, const HalfEdge& y) {
-    return x.key != y.key ? x.key < y.key : x.face < y.face;
-  });
-
-  // Edges: runs of equal keys. Faces sharing an edge belong to one component.
-  DisjointSets faceSets(nf);
-  for (std::size_t i = 0; i < halfEdges.size();) {
-    std::size_t j = i + 1;
-    while (j < halfEdges.size() && halfEdges[j].key == halfEdges[i].key) ++j;
-    const std::size_t count = j - i;
-    ++topo.edges;
-    if (count == 1) {
-      ++topo.boundaryEdges;
-    } else if (count > 2) {
-      ++topo.nonManifoldEdges;
-    } else if (halfEdges[i].forward == halfEdges[i + 1].forward) {
-      ++topo.inconsistentEdges;
-    }
-    for (std::size_t k = i + 1; k < j; ++k) faceSets.unite(halfEdges[i].face, halfEdges[k].face);
-    i = j;
-  }
-  for (std::size_t f = 0; f < nf; ++f) {
-    if (valid[f] && faceSets.find(f) == f) ++topo.components;
-  }
-
-  // Fans: around each vertex, incident faces are linked when they share an edge at that vertex;
-  // more than one linked group means the vertex is pinched (a bow-tie or touching cones).
+  // The faces around each vertex (compressed rows, in face order).
   std::partial_sum(degree.begin(), degree.end(), degree.begin());
   std::vector<std::uint32_t> incident(degree[nv]);
   {
@@ -139,13 +96,16 @@ MeshTopology analyzeTopology(const Mesh& mesh) {
       }
     }
   }
+  // Around each vertex v, the spokes (other vertex w, local face): the runs of equal w are the edges
+  // {v, w}, each counted at its smaller end (a run of one: boundary; of more than two: non-manifold; two
+  // traversing it the same way: inconsistent). Faces sharing an edge belong to one component. Incident
+  // faces linked by an edge at v form fans; more than one means v is pinched (a bow-tie or touching cones).
+  DisjointSets faceSets(nf);
   std::vector<std::pair<std::int32_t, std::uint32_t>> spokes;  // (other vertex, local face index)
-  std::vector<std::uint32_t> local;
   for (std::size_t v = 0; v < nv; ++v) {
-    if (!referenced[v]) continue;
-    ++topo.vertices;
     const std::size_t begin = degree[v], end = degree[v + 1];
-    if (end - begin < 2) continue;
+    if (begin == end) continue;  // not referenced by a valid face
+    ++topo.vertices;
     spokes.clear();
     for (std::size_t i = begin; i < end; ++i) {
       const std::int32_t* t = faces + 3 * std::size_t{incident[i]};
@@ -157,15 +117,43 @@ MeshTopology analyzeTopology(const Mesh& mesh) {
       }
     }
     std::sort(spokes.begin(), spokes.end());
+    // Whether local face i traverses the edge from v to w (else from w to v).
+    const auto fromV = [&](std::uint32_t i, std::int32_t w) {
+      const std::int32_t* t = faces + 3 * std::size_t{incident[begin + i]};
+      for (int k = 0; k < 3; ++k) {
+        if (static_cast<std::size_t>(t[k]) == v) return t[(k + 1) % 3] == w;
+      }
+      return false;
+    };
     DisjointSets fan(end - begin);
-    for (std::size_t i = 1; i < spokes.size(); ++i) {
-      if (spokes[i].first == spokes[i - 1].first) fan.unite(spokes[i].second, spokes[i - 1].second);
+    for (std::size_t i = 0; i < spokes.size();) {
+      std::size_t j = i + 1;
+      while (j < spokes.size() && spokes[j].first == spokes[i].first) ++j;
+      for (std::size_t k = i + 1; k < j; ++k) fan.unite(spokes[k].second, spokes[i].second);
+      if (static_cast<std::size_t>(spokes[i].first) > v) {
+        const std::size_t count = j - i;
+        ++topo.edges;
+        if (count == 1) {
+          ++topo.boundaryEdges;
+        } else if (count > 2) {
+          ++topo.nonManifoldEdges;
+        } else if (fromV(spokes[i].second, spokes[i].first) == fromV(spokes[i + 1].second, spokes[i].first)) {
+          ++topo.inconsistentEdges;
+        }
+        for (std::size_t k = i + 1; k < j; ++k) {
+          faceSets.unite(incident[begin + spokes[i].second], incident[begin + spokes[k].second]);
+        }
+      }
+      i = j;
     }
     std::size_t fans = 0;
     for (std::size_t i = 0; i < end - begin; ++i) {
       if (fan.find(i) == i) ++fans;
     }
     if (fans > 1) ++topo.nonManifoldVertices;
+  }
+  for (std::size_t f = 0; f < nf; ++f) {
+    if (valid[f] && faceSets.find(f) == f) ++topo.components;
   }
 
   topo.eulerCharacteristic = static_cast<long long>(topo.vertices) -
