@@ -499,13 +499,13 @@ MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
   MeshCheck r;
   r.validation = validateMesh(mesh, "mesh");
   {
-    // The topology's edge table (three 24-byte edges a face), the pair search (about 210 bytes a face), the quality
-    // and per-face tables; the pair search keeps only counts (bounded by candidatePairBudget).
+    // The topology's incident-face lists (12 bytes a face), the pair search (about 140 bytes a face), the
+    // quality and per-face tables; the pair search keeps only counts (bounded by candidatePairBudget).
     const double faces = static_cast<double>(mesh.faces.rows());
     std::ostringstream what;
     what.precision(3);
     what << "the mesh's " << faces << " faces";
-    requireMemory(options.limits, "check", 250.0 * faces + 24.0 * static_cast<double>(mesh.vertices.rows()), what.str(),
+    requireMemory(options.limits, "check", 200.0 * faces + 32.0 * static_cast<double>(mesh.vertices.rows()), what.str(),
                   "check a simplified mesh (mesh --max-triangles)");
   }
   r.topology = analyzeTopology(mesh);
