@@ -559,6 +559,7 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
     }
     stats.thinCells = stats.deviatingCells = stats.refinedSeeds = stats.refinedCells = stats.refinedTetrahedra = 0;
     stats.refinementSkipped = false;
+    std::vector<char> rebuild(isoValues.size(), 0);
     for (std::size_t q = 0; q < isoValues.size(); ++q) {
       stats.thinCells += static_cast<std::int64_t>(seeds[q].size());
       if (options.refineTolerance > 0.0 && !seeds[q].empty()) {
@@ -568,13 +569,27 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
       stats.deviatingCells += static_cast<std::int64_t>(seeds[q].size());
       seeds[q].insert(seeds[q].end(), options.refineCells.begin(), options.refineCells.end());
       // The previous round's region when its seeds are the same (its cells' nodes have not changed).
-      if (cache == nullptr || cache->built[q] == 0 || cache->seeds[q] != seeds[q]) {
+      rebuild[q] = cache == nullptr || cache->built[q] == 0 || cache->seeds[q] != seeds[q] ? 1 : 0;
+    }
+    // The level sets' regions at once (each its own; the refinement of one is single-threaded).
+    const auto levelCount = static_cast<int>(isoValues.size());
+#pragma omp parallel for schedule(dynamic, 1) num_threads(std::min(nt, levelCount))
+    for (int qi = 0; qi < levelCount; ++qi) {
+      const auto q = static_cast<std::size_t>(qi);
+      if (!rebuild[q]) continue;
+      try {
         regions[q] = refineCells(grid.cells, seeds[q], options.refineLevels, options.refineDilation, options.maxRefinedCells,
                                  options.refineDeeperCells);
-        if (cache != nullptr) {
-          cache->seeds[q] = seeds[q];
-          cache->built[q] = 1;
-        }
+      } catch (...) {
+#pragma omp critical(duplexfit_extract_error)
+        if (!error) error = std::current_exception();
+      }
+    }
+    if (error) std::rethrow_exception(error);
+    for (std::size_t q = 0; q < isoValues.size(); ++q) {
+      if (rebuild[q] && cache != nullptr) {
+        cache->seeds[q] = seeds[q];
+        cache->built[q] = 1;
       }
       stats.refinementSkipped = stats.refinementSkipped || regions[q].skipped;
       stats.refinedCells += static_cast<std::int64_t>(regions[q].cells.size());
