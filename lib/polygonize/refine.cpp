@@ -216,6 +216,37 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
   // Seeds bisected uniformly down to the fine size, then the cells around them (within `dilation`)
   // one level less.
   const int fineDepth = 3 * levels;
+  // The cells whose closed box holds a vertex, each with a bitmap of its box's (factor + 1)³ lattice
+  // points that are vertices: the closure asks whether an edge's midpoint is a vertex, and every edge of a
+  // cell's tetrahedra lies in its box, so one bitmap a cell answers its six questions a tetrahedron
+  // without a hash probe each (the same answers as `vertices`).
+  const auto side = static_cast<std::size_t>(r.factor) + 1;
+  const std::size_t bitWords = (side * side * side + 63) / 64;
+  std::unordered_map<std::int64_t, std::vector<std::uint64_t>> boxVertices;
+  const auto localBit = [&](const P3& p, const std::array<int, 3>& c) {
+    std::size_t at = 0;
+    for (int a = 2; a >= 0; --a) {
+      at = at * side + static_cast<std::size_t>(p[static_cast<std::size_t>(a)] - c[static_cast<std::size_t>(a)] * r.factor);
+    }
+    return at;
+  };
+  /// The cells (in the grid) whose closed box holds lattice point v: per axis the cell below a node plane
+  /// too.
+  const auto boxesHolding = [&](const P3& v, auto&& visit) {
+    int lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) {
+      const std::int32_t q = v[static_cast<std::size_t>(a)] / r.factor;
+      lo[a] = v[static_cast<std::size_t>(a)] % r.factor == 0 ? q - 1 : q;
+      hi[a] = q;
+    }
+    for (int k = lo[2]; k <= hi[2]; ++k) {
+      for (int j = lo[1]; j <= hi[1]; ++j) {
+        for (int i = lo[0]; i <= hi[0]; ++i) {
+          if (inGrid({i, j, k})) visit(std::array<int, 3>{i, j, k});
+        }
+      }
+    }
+  };
   /// Bisects tets[t] in place (its second child appended), recording a new midpoint.
   const auto split = [&](std::vector<FineTet>& tets, std::size_t t) {
     FineTet c1, c2;
@@ -223,7 +254,15 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
     bisect(tets[t], c1, c2, z);
     tets[t] = c1;
     tets.push_back(c2);
-    if (vertices.emplace(pack(z), 1)) fresh.push_back(z);
+    if (vertices.emplace(pack(z), 1)) {
+      fresh.push_back(z);
+      boxesHolding(z, [&](const std::array<int, 3>& c) {
+        std::vector<std::uint64_t>& bits = boxVertices[id(c)];
+        if (bits.empty()) bits.assign(bitWords, 0);
+        const std::size_t b = localBit(z, c);
+        bits[b / 64] |= std::uint64_t{1} << (b % 64);
+      });
+    }
   };
   const auto refineTo = [&](std::vector<FineTet>& tets, int depth) {
     for (std::size_t t = 0; t < tets.size(); ++t) {
@@ -264,35 +303,37 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
   for (const auto& entry : leaves) dirty.push_back(entry.first);
   for (;;) {
     for (const P3& v : fresh) {
-      int lo[3], hi[3];
-      for (int a = 0; a < 3; ++a) {
-        const std::int32_t q = v[static_cast<std::size_t>(a)] / r.factor;
-        const bool onPlane = v[static_cast<std::size_t>(a)] % r.factor == 0;
-        lo[a] = onPlane ? q - 1 : q;
-        hi[a] = q;
-      }
-      for (int k = lo[2]; k <= hi[2]; ++k) {
-        for (int j = lo[1]; j <= hi[1]; ++j) {
-          for (int i = lo[0]; i <= hi[0]; ++i) {
-            if (!inGrid({i, j, k})) continue;
-            add({i, j, k});
-            dirty.push_back(id({i, j, k}));
-          }
-        }
-      }
+      boxesHolding(v, [&](const std::array<int, 3>& c) {
+        add(c);
+        dirty.push_back(id(c));
+      });
     }
     fresh.clear();
     std::sort(dirty.begin(), dirty.end());
     dirty.erase(std::unique(dirty.begin(), dirty.end()), dirty.end());
     for (const std::int64_t key : dirty) {
       std::vector<FineTet>& tets = leaves[key];
+      const std::array<int, 3> cell{static_cast<int>(key % cells(0)), static_cast<int>((key / cells(0)) % cells(1)),
+                                    static_cast<int>(key / (std::int64_t{cells(0)} * cells(1)))};
+      // The cell's bitmap (none yet: no vertex in its box, so no tetrahedron of it hangs). References to
+      // an unordered_map's elements survive its rehashing; a split here adds the cell's own entry.
+      const std::vector<std::uint64_t>* bits = nullptr;
+      const auto findBits = [&] {
+        const auto box = boxVertices.find(key);
+        bits = box == boxVertices.end() ? nullptr : &box->second;
+      };
+      findBits();
       for (std::size_t t = 0; t < tets.size(); ++t) {
         for (;;) {
           bool hanging = false;
           for (const auto& e : kEdges) {
             P3 m{};
-            if (midpoint(tets[t].x[static_cast<std::size_t>(e[0])], tets[t].x[static_cast<std::size_t>(e[1])], m) &&
-                vertices.contains(pack(m))) {
+            if (bits == nullptr ||
+                !midpoint(tets[t].x[static_cast<std::size_t>(e[0])], tets[t].x[static_cast<std::size_t>(e[1])], m)) {
+              continue;
+            }
+            const std::size_t b = localBit(m, cell);
+            if ((((*bits)[b / 64] >> (b % 64)) & 1U) != 0) {
               hanging = true;
               break;
             }
@@ -302,6 +343,7 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
             throw std::logic_error("refineCells: the conformity closure does not terminate");
           }
           split(tets, t);
+          if (bits == nullptr) findBits();
         }
       }
     }
