@@ -123,7 +123,11 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
   // Distance band: the nearest input point of every candidate; the band's candidates then get their
   // kNear nearest (the search is exact and sorted by distance and index, so the first agreeNeighbors of
   // them are the votes' neighbours and all of them the disk-soup distance's).
-  const NeighborLists nearest = inputIndex.knnSearch(q, 1);
+  // With an upper end, a search that never looks beyond it (the same nearest point within it; none beyond,
+  // where the band test drops the candidate anyway).
+  const NeighborLists nearest = o.maxDistance > 0.0 && std::isfinite(o.maxDistance)
+                                    ? inputIndex.nearestWithin(q, o.maxDistance)
+                                    : inputIndex.knnSearch(q, 1);
   std::vector<Eigen::Index> band;
   std::vector<double> bandDistance;
   for (Eigen::Index r = 0; r < q.rows(); ++r) {
