@@ -146,7 +146,9 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
   std::vector<char> clear(band.size(), 1);
   if (centres.rows() > 0 && o.centreClearance > 0.0) {
     const NeighborIndex centreIndex(centres);
-    const NeighborLists nc = centreIndex.knnSearch(bq, 1);
+    // Only whether a centre is nearer than the clearance counts: a search that never looks beyond it.
+    const NeighborLists nc = std::isfinite(o.centreClearance) ? centreIndex.nearestWithin(bq, o.centreClearance)
+                                                               : centreIndex.knnSearch(bq, 1);
     for (std::size_t r = 0; r < band.size(); ++r) {
       if (nc.count(r) > 0 && nc.distances[static_cast<std::size_t>(nc.offsets[r])] < o.centreClearance) clear[r] = 0;
     }
