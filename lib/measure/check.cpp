@@ -5,7 +5,6 @@
 // line, or a 2D test for coplanar triangles); one → whether the triangles extend beyond the shared vertex
 // in a common direction; an edge → coplanar fold-over; all three → a duplicate face.
 #include <algorithm>
-#include <array>
 #include <cstddef>
 #include <limits>
 #include <cmath>
@@ -548,59 +547,38 @@ SelfIntersections findSelfIntersections(const Mesh& mesh, const CheckOptions& op
 
 namespace {
 
-/// The faces of `tested` whose boxes can meet an asked face's query box (its box grown by its tolerance),
-/// in the same order. The asked faces' query boxes go into a small tree, and each tested face's box, grown
-/// by the largest tolerance of an asked face, is looked up there: a face kept by neither cannot be a
-/// candidate of an asked face. So a subset query builds its tree over a neighbourhood of the faces asked
-/// about instead of the whole mesh (the projection's undo asks about a few hundred faces of millions;
-/// fandisk_550k's offset mesh: 3.5 s a round before). The pairs found are the same; only where a face
-/// has more candidates than its per-face bound (CheckOptions::candidatePairBudget, at least 1024) can the
-/// prefix examined, and so an incomplete count, differ.
-std::vector<std::int64_t> nearAsked(const FaceSource& faces, const std::vector<char>& asked,
-                                    const std::vector<std::int64_t>& tested) {
-  Mesh boxes;  // each asked face's query box as the triangle of its two corners (its bounding box)
-  std::vector<std::array<double, 6>> rows;
+/// The faces whose boxes can meet an asked face's query box (its box grown by its tolerance), in face
+/// order: the asked faces go into a box tree of their own, and each face's box, grown by twice the largest
+/// tolerance of an asked face, is looked up there; a face kept by neither cannot be a candidate of an asked
+/// face. So a subset query builds its tree over a neighbourhood of the faces asked about instead of the
+/// whole mesh (the projection's undo asks about a few hundred faces of millions; fandisk_550k's offset
+/// mesh: 3.5 s a round before). The pairs found are the same; only where a face has more candidates than
+/// its per-face bound (CheckOptions::candidatePairBudget, at least 1024) can the prefix examined, and so an
+/// incomplete count, differ.
+std::vector<std::int64_t> nearAsked(const FaceSource& faces, const std::vector<char>& asked) {
+  std::vector<std::int64_t> askedFaces;
   double grow = 0.0;
-  for (const std::int64_t i : tested) {
-    if (!asked[static_cast<std::size_t>(i)]) continue;
-    double lo[3], hi[3];
-    faces.box(static_cast<std::size_t>(i), lo, hi);
-    const double tol = faces.tolOf(static_cast<std::size_t>(i));
-    std::array<double, 6> b{};
-    for (int c = 0; c < 3; ++c) {
-      b[static_cast<std::size_t>(c)] = lo[c] - tol;
-      b[static_cast<std::size_t>(3 + c)] = hi[c] + tol;
-    }
-    rows.push_back(b);
-    grow = std::max(grow, tol);
+  for (std::size_t i = 0; i < asked.size(); ++i) {
+    if (!asked[i]) continue;
+    askedFaces.push_back(static_cast<std::int64_t>(i));
+    grow = std::max(grow, faces.tolOf(i));
   }
-  if (rows.empty()) return {};
-  const auto m = static_cast<Eigen::Index>(rows.size());
-  boxes.vertices.resize(2 * m, 3);
-  boxes.faces.resize(m, 3);
-  for (Eigen::Index k = 0; k < m; ++k) {
-    const auto& b = rows[static_cast<std::size_t>(k)];
-    boxes.vertices.row(2 * k) << b[0], b[1], b[2];
-    boxes.vertices.row(2 * k + 1) << b[3], b[4], b[5];
-    boxes.faces.row(k) << static_cast<std::int32_t>(2 * k), static_cast<std::int32_t>(2 * k + 1),
-        static_cast<std::int32_t>(2 * k + 1);
-  }
-  const TriangleBvh near(boxes);
-  std::vector<char> keep(tested.size(), 0);
-  const auto n = static_cast<long long>(tested.size());
+  if (askedFaces.empty()) return {};
+  const BoxTree near(faces, askedFaces);
+  std::vector<char> keep(asked.size(), 0);
+  const auto n = static_cast<long long>(asked.size());
   measure_detail::ParallelErrors errors;
-#pragma omp parallel default(none) shared(faces, tested, near, keep, n, grow, errors)
+#pragma omp parallel default(none) shared(faces, near, keep, n, grow, errors)
   {
     std::vector<std::int64_t> hit;  // one per thread: at most one face a query
 #pragma omp for schedule(dynamic, 4096)
     for (long long k = 0; k < n; ++k) {
       errors.run([&] {
-        double tlo[3], thi[3];
-        faces.box(static_cast<std::size_t>(tested[static_cast<std::size_t>(k)]), tlo, thi);
-        Eigen::Vector3d lo, hi;
+        double lo[3], hi[3];
+        faces.box(static_cast<std::size_t>(k), lo, hi);
         for (int c = 0; c < 3; ++c) {
-          lo[c] = tlo[c] - grow;
-          hi[c] = thi[c] + grow;
+          lo[c] -= 2.0 * grow;
+          hi[c] += 2.0 * grow;
         }
         hit.clear();
         near.overlapping(lo, hi, hit, 1);
@@ -610,8 +588,8 @@ std::vector<std::int64_t> nearAsked(const FaceSource& faces, const std::vector<c
   }
   errors.rethrow();
   std::vector<std::int64_t> out;
-  for (std::size_t k = 0; k < tested.size(); ++k) {
-    if (keep[k]) out.push_back(tested[k]);
+  for (std::size_t k = 0; k < keep.size(); ++k) {
+    if (keep[k]) out.push_back(static_cast<std::int64_t>(k));
   }
   return out;
 }
@@ -647,9 +625,7 @@ SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& opti
   std::vector<std::int64_t> tested;
   std::vector<char> usedVertex;
   if (local) {
-    std::vector<std::int64_t> every(nf);
-    std::iota(every.begin(), every.end(), std::int64_t{0});
-    tested = nearAsked(FaceSource{mesh.faces.data(), mesh.vertices.data(), nullptr}, asked, every);
+    tested = nearAsked(FaceSource{mesh.faces.data(), mesh.vertices.data(), nullptr}, asked);
     usedVertex.assign(static_cast<std::size_t>(mesh.vertices.rows()), 0);
     for (const std::int64_t i : tested) {
       for (Eigen::Index k = 0; k < 3; ++k) usedVertex[static_cast<std::size_t>(mesh.faces(static_cast<Eigen::Index>(i), k))] = 1;

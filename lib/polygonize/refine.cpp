@@ -202,7 +202,6 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
     return c[0] + std::int64_t{cells(0)} * (c[1] + std::int64_t{cells(1)} * c[2]);
   };
   std::unordered_map<std::int64_t, std::vector<FineTet>> leaves;
-  PointMap<char> vertices;
   std::vector<P3> fresh;
   const auto inGrid = [&cells](const std::array<int, 3>& c) {
     return c[0] >= 0 && c[1] >= 0 && c[2] >= 0 && c[0] < cells(0) && c[1] < cells(1) && c[2] < cells(2);
@@ -216,10 +215,10 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
   // Seeds bisected uniformly down to the fine size, then the cells around them (within `dilation`)
   // one level less.
   const int fineDepth = 3 * levels;
-  // The cells whose closed box holds a vertex, each with a bitmap of its box's (factor + 1)³ lattice
-  // points that are vertices: the closure asks whether an edge's midpoint is a vertex, and every edge of a
-  // cell's tetrahedra lies in its box, so one bitmap a cell answers its six questions a tetrahedron
-  // without a hash probe each (the same answers as `vertices`).
+  // The midpoints made so far, as one bitmap per cell whose closed box holds one (of the box's (factor + 1)³
+  // lattice points): the closure asks whether an edge's midpoint is a vertex, and every edge of a cell's
+  // tetrahedra lies in its box, so one bitmap a cell answers its six questions a tetrahedron without a
+  // hash probe each; a new midpoint is marked in every cell whose box holds it.
   const auto side = static_cast<std::size_t>(r.factor) + 1;
   const std::size_t bitWords = (side * side * side + 63) / 64;
   std::unordered_map<std::int64_t, std::vector<std::uint64_t>> boxVertices;
@@ -254,15 +253,17 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
     bisect(tets[t], c1, c2, z);
     tets[t] = c1;
     tets.push_back(c2);
-    if (vertices.emplace(pack(z), 1)) {
-      fresh.push_back(z);
-      boxesHolding(z, [&](const std::array<int, 3>& c) {
-        std::vector<std::uint64_t>& bits = boxVertices[id(c)];
-        if (bits.empty()) bits.assign(bitWords, 0);
-        const std::size_t b = localBit(z, c);
-        bits[b / 64] |= std::uint64_t{1} << (b % 64);
-      });
-    }
+    // Known when marked in any cell holding it (a new one is marked in all of them at once).
+    bool first = true, known = false;
+    boxesHolding(z, [&](const std::array<int, 3>& c) {
+      std::vector<std::uint64_t>& bits = boxVertices[id(c)];
+      if (bits.empty()) bits.assign(bitWords, 0);
+      const std::size_t b = localBit(z, c);
+      if (first) known = ((bits[b / 64] >> (b % 64)) & 1U) != 0;
+      first = false;
+      bits[b / 64] |= std::uint64_t{1} << (b % 64);
+    });
+    if (!known) fresh.push_back(z);
   };
   const auto refineTo = [&](std::vector<FineTet>& tets, int depth) {
     for (std::size_t t = 0; t < tets.size(); ++t) {
