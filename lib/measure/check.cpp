@@ -30,6 +30,7 @@ using geom::norm2;
 using geom::sub;
 
 constexpr double kRelTol = 1e-10;  // geometric tolerance relative to the larger triangle's longest edge
+constexpr std::size_t kQueryGroup = 4;  // faces a walk of the pair search's tree serves
 
 class DisjointSets {
  public:
@@ -398,9 +399,32 @@ class BoxTree {
     code_ = {};
   }
 
+  /// A face found by a box query, with its double bounding box.
+  struct Hit {
+    std::int64_t face;
+    double lo[3], hi[3];
+  };
+
   /// Appends the faces whose double bounding boxes meet [lo, hi], at most `limit`: false when it stopped
   /// there with faces left unvisited.
   bool overlapping(const double lo[3], const double hi[3], std::vector<std::int64_t>& out, std::size_t limit) const {
+    return visit(lo, hi, limit, [&out](std::int64_t face, const double*, const double*) { out.push_back(face); });
+  }
+  /// As overlapping, with each face's box.
+  bool overlapping(const double lo[3], const double hi[3], std::vector<Hit>& out, std::size_t limit) const {
+    return visit(lo, hi, limit, [&out](std::int64_t face, const double* tlo, const double* thi) {
+      out.push_back(Hit{face, {tlo[0], tlo[1], tlo[2]}, {thi[0], thi[1], thi[2]}});
+    });
+  }
+
+  /// The tested faces in leaf (Morton) order.
+  const std::vector<std::int64_t>& leafFaces() const { return face_; }
+
+ private:
+  /// Calls emit(face, lo, hi) for the faces (in depth-first leaf order) whose double bounding boxes meet
+  /// [lo, hi], at most `limit` times: false when a further face was found.
+  template <typename Emit>
+  bool visit(const double lo[3], const double hi[3], std::size_t limit, Emit&& emit) const {
     if (nodes_.empty()) return true;
     const float flo[3] = {down(lo[0]), down(lo[1]), down(lo[2])};
     const float fhi[3] = {up(hi[0]), up(hi[1]), up(hi[2])};
@@ -425,14 +449,13 @@ class BoxTree {
         for (int c = 0; c < 3; ++c) miss = miss || tlo[c] > hi[c] || thi[c] < lo[c];
         if (miss) continue;
         if (room == 0) return false;
-        out.push_back(face_[k]);
+        emit(face_[k], tlo, thi);
         --room;
       }
     }
     return true;
   }
 
- private:
   static constexpr std::size_t kBoxLeaf = 4;
   // The query stack's bound: a query holds at most one pending right child a level.
   static constexpr int kMaxDepth = detail::kMortonTreeDepth;
@@ -660,45 +683,89 @@ SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& opti
   std::size_t count = 0;
   bool complete = true;
   measure_detail::ParallelErrors errors;
-  const auto nfl = static_cast<long long>(nf);
+  // Queries by groups of up to four consecutive tested faces in the tree's leaf (Morton) order, close
+  // together: the asked faces of a group share one walk of the tree with the union of their query boxes,
+  // and each keeps the hits that meet its own box. Those are the hits, in the same depth-first order and
+  // under the same bound, of a walk of its own, which a face takes alone (or when the union has more than
+  // perFace hits a face). The walks were 60% of the search on fandisk_550k's 3.7M-face mesh.
+  const std::vector<std::int64_t>& order = tree.leafFaces();
+  const auto ngroups = static_cast<long long>((order.size() + kQueryGroup - 1) / kQueryGroup);
   const bool subset = faces != nullptr;
-#pragma omp parallel default(none) shared(source, tol, tested, tree, examples, nfl, perFace, listed, errors, asked, subset) \
+#pragma omp parallel default(none) shared(source, tol, order, tree, examples, ngroups, perFace, listed, errors, asked, subset) \
     reduction(+ : count) reduction(&& : complete)
   {
     // Exceptions (bad_alloc) are caught per iteration: one leaving the loop would skip its barrier.
     std::vector<Pair> mine;
     std::vector<std::int64_t> candidates;
+    std::vector<BoxTree::Hit> hits;
     // Keeps the `listed` smallest of `mine` once it has grown to twice that.
     auto trim = [&mine, listed] {
       if (mine.size() <= listed) return;
       std::nth_element(mine.begin(), mine.begin() + static_cast<std::ptrdiff_t>(listed), mine.end());
       mine.resize(listed);
     };
-#pragma omp for schedule(dynamic, 512)
-    for (long long ii = 0; ii < nfl; ++ii) {
-      if (tol[static_cast<std::size_t>(ii)] < 0.0 || (subset && !asked[static_cast<std::size_t>(ii)])) continue;
-      const Tri s = source.tri(static_cast<std::size_t>(ii));
+    // Candidate j of face ii (prepared as s): the owner tests the pair.
+    const auto consider = [&](const Tri& s, std::int64_t ii, std::int64_t j) {
+      if (j == ii) return;
+      // The triangle with the larger tolerance (its box query is the wider one) owns the pair; with a
+      // subset, a face not asked about owns nothing.
+      const bool tAsked = !subset || asked[static_cast<std::size_t>(j)];
+      const double tTol = tol[static_cast<std::size_t>(j)];
+      if (tAsked && (tTol > s.tol || (tTol == s.tol && j < ii))) return;
+      const Tri t = source.tri(static_cast<std::size_t>(j));
+      if (!pairIntersect(s, t, tAsked ? s.tol : std::max(s.tol, t.tol))) return;
+      ++count;
+      if (listed == 0) return;
+      mine.emplace_back(std::min<std::int64_t>(ii, j), std::max<std::int64_t>(ii, j));
+      if (mine.size() / 2 >= listed) trim();
+    };
+#pragma omp for schedule(dynamic, 128)
+    for (long long g = 0; g < ngroups; ++g) {
       errors.run([&] {
-        double lo[3], hi[3];
-        for (int c = 0; c < 3; ++c) {
-          lo[c] = std::min({s.p[c], s.p[3 + c], s.p[6 + c]}) - s.tol;
-          hi[c] = std::max({s.p[c], s.p[3 + c], s.p[6 + c]}) + s.tol;
+        Tri qs[kQueryGroup];
+        std::int64_t qf[kQueryGroup];
+        double qlo[kQueryGroup][3], qhi[kQueryGroup][3];
+        double ulo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, uhi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+        std::size_t nq = 0;
+        const std::size_t begin = static_cast<std::size_t>(g) * kQueryGroup;
+        for (std::size_t k = begin; k < std::min(order.size(), begin + kQueryGroup); ++k) {
+          const std::int64_t ii = order[k];
+          if (subset && !asked[static_cast<std::size_t>(ii)]) continue;
+          const Tri& s = qs[nq] = source.tri(static_cast<std::size_t>(ii));
+          qf[nq] = ii;
+          for (int c = 0; c < 3; ++c) {
+            qlo[nq][c] = std::min({s.p[c], s.p[3 + c], s.p[6 + c]}) - s.tol;
+            qhi[nq][c] = std::max({s.p[c], s.p[3 + c], s.p[6 + c]}) + s.tol;
+            ulo[c] = std::min(ulo[c], qlo[nq][c]);
+            uhi[c] = std::max(uhi[c], qhi[nq][c]);
+          }
+          ++nq;
         }
-        candidates.clear();
-        if (!tree.overlapping(lo, hi, candidates, perFace)) complete = false;
-        for (const std::int64_t j : candidates) {
-          if (j == ii) continue;
-          // The triangle with the larger tolerance (its box query is the wider one) owns the pair; with a
-          // subset, a face not asked about owns nothing.
-          const bool tAsked = !subset || asked[static_cast<std::size_t>(j)];
-          const double tTol = tol[static_cast<std::size_t>(j)];
-          if (tAsked && (tTol > s.tol || (tTol == s.tol && j < ii))) continue;
-          const Tri t = source.tri(static_cast<std::size_t>(j));
-          if (!pairIntersect(s, t, tAsked ? s.tol : std::max(s.tol, t.tol))) continue;
-          ++count;
-          if (listed == 0) continue;
-          mine.emplace_back(std::min<std::int64_t>(ii, j), std::max<std::int64_t>(ii, j));
-          if (mine.size() / 2 >= listed) trim();
+        if (nq == 0) return;
+        bool alone = nq == 1;
+        if (!alone) {
+          hits.clear();
+          alone = !tree.overlapping(ulo, uhi, hits, perFace * nq);
+        }
+        for (std::size_t a = 0; a < nq; ++a) {
+          if (alone) {
+            candidates.clear();
+            if (!tree.overlapping(qlo[a], qhi[a], candidates, perFace)) complete = false;
+            for (const std::int64_t j : candidates) consider(qs[a], qf[a], j);
+            continue;
+          }
+          std::size_t taken = 0;
+          for (const BoxTree::Hit& h : hits) {
+            bool miss = false;
+            for (int c = 0; c < 3; ++c) miss = miss || h.lo[c] > qhi[a][c] || h.hi[c] < qlo[a][c];
+            if (miss) continue;
+            if (taken == perFace) {
+              complete = false;
+              break;
+            }
+            ++taken;
+            consider(qs[a], qf[a], h.face);
+          }
         }
       });
     }

@@ -4,10 +4,14 @@
 #include <doctest/doctest.h>
 
 #include <array>
+#include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "data.hpp"
 #include "duplexfit/io.hpp"
@@ -181,6 +185,45 @@ TEST_CASE("check: self-intersections of overlapping spheres and of triangle pair
     CHECK(intersections(soup({{{0, 0, 0, 1, 0, 0, 0, 1, 0}}, {{1, 0, 0, 0, 0, 0, 0.3, 0.5, 0}}})) == 1);
     CHECK(intersections(soup({{{0, 0, 0, 1, 0, 0, 0, 1, 0}}, {{0, 0, 0, 0, 1, 0, 1, 0, 0}}})) == 1);
   }
+}
+
+TEST_CASE("check: the pair search finds the pairs that testing every pair finds") {
+  // Two overlapping spheres with jittered vertices (folds and crossings within each, crossings between
+  // them), a few faces repeated: every pair of faces is also tested alone, as a two-face mesh (whose
+  // vertices are welded by position as in the whole mesh), and the two lists must agree.
+  Mesh m = testing::concatenate(icosphere(2, 1.0), icosphere(2, 0.9, Eigen::RowVector3d(0.6, 0.1, 0.0)));
+  std::uint64_t state = 12345;
+  const auto uniform = [&state] {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return static_cast<double>(state >> 11) / 9007199254740992.0 - 0.5;
+  };
+  for (Eigen::Index v = 0; v < m.vertices.rows(); ++v) {
+    for (int c = 0; c < 3; ++c) m.vertices(v, c) += 0.12 * uniform();
+  }
+  const Eigen::Index n0 = m.faces.rows();
+  m.faces.conservativeResize(n0 + 3, 3);
+  for (Eigen::Index k = 0; k < 3; ++k) m.faces.row(n0 + k) = m.faces.row(17 * k);
+  CheckOptions all;
+  all.listedPairs = std::numeric_limits<std::size_t>::max();
+  const SelfIntersections found = findSelfIntersections(m, all);
+  REQUIRE(found.complete);
+  std::vector<std::pair<std::int64_t, std::int64_t>> brute;
+  for (Eigen::Index i = 0; i < m.faces.rows(); ++i) {
+    for (Eigen::Index j = i + 1; j < m.faces.rows(); ++j) {
+      Mesh two;
+      two.vertices.resize(6, 3);
+      two.faces.resize(2, 3);
+      for (int k = 0; k < 3; ++k) {
+        two.vertices.row(k) = m.vertices.row(m.faces(i, k));
+        two.vertices.row(3 + k) = m.vertices.row(m.faces(j, k));
+      }
+      two.faces << 0, 1, 2, 3, 4, 5;
+      if (findSelfIntersections(two, all).count > 0) brute.emplace_back(i, j);
+    }
+  }
+  CHECK(brute.size() > 50);  // the jitter folds and crosses faces: the test has pairs to find
+  CHECK(found.count == brute.size());
+  CHECK(found.pairs == brute);
 }
 
 TEST_CASE("check: shared data meshes match their manifest") {
