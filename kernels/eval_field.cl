@@ -4,7 +4,8 @@
  * Arguments:
  *   nq, queries[3*nq]           query points (normalised coordinates)
  *   nlevels                     how many levels (from the first) to sum
- *   params, dims, cell_start, centres   the per-level grids (layout in field_point.cl)
+ *   params, dims, cell_start, centres   the per-level grids (layout in field_point.cl; the _v8 kernels
+ *                               take the centres as per-level x, y, z, w arrays, see below)
  *   f0                          the constant base field
  *   out[K*nq]                   K = 1 (f), 4 (f, df/dx, df/dy, df/dz) or 10 (f, gradient, Hessian
  *                               xx, xy, xz, yy, yz, zz), query-major */
@@ -36,20 +37,15 @@ DPX_EVAL_KERNEL(eval_field_hessian, dpx_field_point, 10)
  * small sums, as in the scalar kernel (lane sums kept over all levels carry the coarse levels' magnitude:
  * in float, 1.7x the scalar kernel's largest error on fandisk_550k). PoCL runs one work-item's loop over a row of
  * centres as scalar code (the trip count differs between work-items, so it cannot vectorise across
- * them); here the loop itself is 8 wide. Each step reads the next 8 centres (two 16-wide loads of the
- * x, y, z, w records); lanes past the end of the row are masked, so the device buffer of the centres is
- * allocated 8 centres longer than the field (FieldEvaluator pads it; the values there are never used).
- * Float only: in double, FieldEvaluator runs the scalar kernel.
- * vload16 returns a float16, which clang on an AVX2 device (no AVX-512) flags with -Wpsabi: a 512-bit
- * vector returned from a function that is not inlined would change the calling convention. PoCL links
- * and inlines its builtins into the kernel, so no such call remains, and the warning is silenced for this
- * section only. Four vload8 (no warning) were 15-25% slower on fandisk_550k's field, eight vload4 the
- * same (docs/benchmarks.md). */
+ * them); here the loop itself is 8 wide.
+ * The centres come in the layout FieldEvaluator uploads for these kernels: level by level, four arrays
+ * of the level's size n (x, y, z, then w), level l from 4 * its centre offset, so that each step reads
+ * four contiguous vectors (vload8). Out of the x-y-z-w records of the scalar kernel PoCL built each step
+ * from 8-byte loads and shuffles (docs/benchmarks.md). Lanes past the end of the row
+ * are masked, so the buffer is allocated 8 reals longer than the centres (FieldEvaluator pads it; the
+ * values there are never used).
+ * Float only: in double, FieldEvaluator runs the scalar kernel. */
 #ifndef REAL_IS_DOUBLE
-#ifdef __clang__
-#pragma clang diagnostic push
-#pragma clang diagnostic ignored "-Wpsabi"
-#endif
 typedef float8 real8;
 typedef int8 mask8;
 
@@ -69,6 +65,11 @@ inline void dpx_field_point_v8(const real x, const real y, const real z, const u
     const real inv_cell = params[6 * l + 3], sigma = params[6 * l + 4], inv_sigma = params[6 * l + 5];
     const int nx = (int)dims[5 * l], ny = (int)dims[5 * l + 1], nz = (int)dims[5 * l + 2];
     const uint cs_off = dims[5 * l + 3], c_off = dims[5 * l + 4];
+    const uint n = cell_start[cs_off + (uint)(nx * ny * nz)]; /* the level's centres */
+    __global const real* px = centres + 4 * (ulong)c_off;
+    __global const real* py = px + n;
+    __global const real* pz = py + n;
+    __global const real* pw = pz + n;
     const int cx = (int)floor((x - ox) * inv_cell);
     const int cy = (int)floor((y - oy) * inv_cell);
     const int cz = (int)floor((z - oz) * inv_cell);
@@ -82,19 +83,17 @@ inline void dpx_field_point_v8(const real x, const real y, const real z, const u
         const uint row = cs_off + (uint)((iz * ny + iy) * nx);
         const int x0 = max(cx - 1, 0), x1 = min(cx + 1, nx - 1);
         if (x0 > x1) continue;
-        const uint b = cell_start[row + (uint)x0] + c_off;
-        const uint e = cell_start[row + (uint)x1 + 1] + c_off;
+        const uint b = cell_start[row + (uint)x0];
+        const uint e = cell_start[row + (uint)x1 + 1];
         for (uint j = b; j < e; j += 8) {
-          __global const real* rec = centres + 4 * (ulong)j;
-          const float16 pa = vload16(0, rec), pb = vload16(1, rec);
-          /* lanes past the row (their records may be another level's or the padding) sit outside the support */
+          /* lanes past the row (their values may be the next array's or the padding) sit outside the support */
           const mask8 valid = lane < (mask8)((int)(e - j));
-          const real8 ux = select((real8)sigma, x - (real8)(pa.s048c, pb.s048c), valid);
-          const real8 uy = select((real8)sigma, y - (real8)(pa.s159d, pb.s159d), valid);
-          const real8 uz = select((real8)sigma, z - (real8)(pa.s26ae, pb.s26ae), valid);
+          const real8 ux = select((real8)sigma, x - vload8(0, px + j), valid);
+          const real8 uy = select((real8)sigma, y - vload8(0, py + j), valid);
+          const real8 uz = select((real8)sigma, z - vload8(0, pz + j), valid);
           const real8 d2 = ux * ux + uy * uy + uz * uz;
           const mask8 inside = d2 < (real8)s2;
-          const real8 w = select((real8)0, (real8)(pa.s37bf, pb.s37bf), inside);
+          const real8 w = select((real8)0, vload8(0, pw + j), inside);
           const real8 rho = sqrt(d2);
           const real8 r = rho * inv_sigma;
           const real8 t = fmax((real8)1 - r, (real8)0);
@@ -140,7 +139,4 @@ inline void dpx_field_point_v8(const real x, const real y, const real z, const u
 DPX_EVAL_KERNEL(eval_field_value_v8, dpx_field_point_v8, 1)
 DPX_EVAL_KERNEL(eval_field_gradient_v8, dpx_field_point_v8, 4)
 DPX_EVAL_KERNEL(eval_field_hessian_v8, dpx_field_point_v8, 10)
-#ifdef __clang__
-#pragma clang diagnostic pop
-#endif
 #endif /* REAL_IS_DOUBLE */

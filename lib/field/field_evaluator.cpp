@@ -33,6 +33,11 @@ struct EvaluatorImpl {
   std::vector<cl_uint> cellStart;       // per level nx*ny*nz + 1 prefix offsets
   std::vector<double> packed;           // x, y, z, w per centre, sorted by cell within each level
   std::vector<float> paramsF, packedF;  // float copies (precision float)
+  /// With the 8-wide kernels (float on a CPU device): the centres level by level as four arrays x, y, z,
+  /// w of the level's size each, level k from 4 × its centre offset (kernels/eval_field.cl); packedF is
+  /// then not kept. soaLevels: the levels laid out so far.
+  std::vector<float> soaF;
+  cl_uint soaLevels = 0;
   /// A device copy of one host array: `capacity` elements allocated, the first `uploaded` current.
   struct DeviceArray {
     cl::Buffer buffer;
@@ -205,14 +210,27 @@ void syncArray(const Device& device, detail::EvaluatorImpl::DeviceArray& a, cons
 
 /// Makes the float copies and the device buffers current after levels were added.
 void sync(detail::EvaluatorImpl& e, double reserve) {
+  const bool soa = e.precision == Precision::Float && !e.device.isReference() && e.device.impl()->params().fieldVector;
   if (e.precision == Precision::Float) {
     e.paramsF.insert(e.paramsF.end(), e.params.begin() + static_cast<std::ptrdiff_t>(e.paramsF.size()), e.params.end());
-    e.packedF.insert(e.packedF.end(), e.packed.begin() + static_cast<std::ptrdiff_t>(e.packedF.size()), e.packed.end());
+    if (!soa) {
+      e.packedF.insert(e.packedF.end(), e.packed.begin() + static_cast<std::ptrdiff_t>(e.packedF.size()), e.packed.end());
+    }
+  }
+  for (; soa && e.soaLevels < e.levels; ++e.soaLevels) {
+    const std::size_t first = e.dims[5 * e.soaLevels + 4];
+    const std::size_t end = e.soaLevels + 1 < e.levels ? e.dims[5 * (e.soaLevels + 1) + 4] : e.packed.size() / 4;
+    e.soaF.resize(4 * end);
+    float* out = e.soaF.data() + 4 * first;
+    const std::size_t n = end - first;
+    for (std::size_t j = 0; j < n; ++j) {
+      for (std::size_t c = 0; c < 4; ++c) out[c * n + j] = static_cast<float>(e.packed[4 * (first + j) + c]);
+    }
   }
   if (e.device.isReference()) return;
   if (e.precision == Precision::Float) {
     syncArray(e.device, e.paramsBuf, e.paramsF, reserve, "field level parameters");
-    syncArray(e.device, e.centresBuf, e.packedF, reserve, "field centres", kCentrePad);
+    syncArray(e.device, e.centresBuf, soa ? e.soaF : e.packedF, reserve, "field centres", kCentrePad);
   } else {
     syncArray(e.device, e.paramsBuf, e.params, reserve, "field level parameters");
     syncArray(e.device, e.centresBuf, e.packed, reserve, "field centres", kCentrePad);
