@@ -34,6 +34,9 @@ BlockJacobiPreconditioner::BlockJacobiPreconditioner(const Device& device, const
     const Eigen::LLT<Eigen::MatrixXd> llt(block);
     if (llt.info() == Eigen::Success) {
       inv = llt.solve(Eigen::MatrixXd::Identity(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m)));
+      // Exactly symmetric (the solve leaves rounding differences between (i, j) and (j, i)): PCG assumes
+      // a symmetric M, and the CPU kernel reads row j of a block as its column j (kernels/precond.cl).
+      inv = (0.5 * (inv + inv.transpose())).eval();
     } else {  // not numerically SPD: fall back to the diagonal (Jacobi) for this block
       inv = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
       for (Eigen::Index i = 0; i < inv.rows(); ++i) inv(i, i) = block(i, i) > 0.0 ? 1.0 / block(i, i) : 1.0;
