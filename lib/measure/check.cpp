@@ -85,39 +85,65 @@ std::size_t countBoundaryLoops(const Mesh& mesh) {
 
 /// Vertex ids with vertices at identical positions merged (the smallest index of each position), of the
 /// vertices marked in `used` (all when null; the others get -1). Among the marked vertices, two get the
-/// same id exactly when they are at the same position, as over the whole mesh.
+/// same id exactly when they are at the same position, as over the whole mesh. Identical positions share
+/// a Morton cell, so the vertices are radix sorted by cell (ties in index order) and only each cell's run
+/// is compared, pairwise for a short run, by a sort of positions for a long one: a comparison sort of
+/// all positions took 0.3 s of one thread on fandisk_550k's 1.8M vertices.
 std::vector<std::int32_t> weldedIds(const Mesh& mesh, const std::vector<char>* used = nullptr) {
   const auto nv = static_cast<std::size_t>(mesh.vertices.rows());
   const double* v = mesh.vertices.data();
-  std::vector<std::int32_t> order;
+  std::vector<std::int32_t> chosen;
   if (used) {
     for (std::size_t i = 0; i < nv; ++i) {
-      if ((*used)[i]) order.push_back(static_cast<std::int32_t>(i));
+      if ((*used)[i]) chosen.push_back(static_cast<std::int32_t>(i));
     }
-  } else {
-    order.resize(nv);
-    std::iota(order.begin(), order.end(), 0);
   }
-  auto less = [v](std::int32_t a, std::int32_t b) {
+  const std::size_t n = used ? chosen.size() : nv;
+  const auto vertexOf = [&](std::size_t k) { return used ? static_cast<std::size_t>(chosen[k]) : k; };
+  const std::vector<std::uint64_t> key = detail::mortonSortedKeys(n, [&](std::size_t k, double* x) {
+    const double* p = v + 3 * vertexOf(k);
+    x[0] = p[0];
+    x[1] = p[1];
+    x[2] = p[2];
+  });
+  const auto same = [v](std::int32_t a, std::int32_t b) {
     const double* pa = v + 3 * static_cast<std::size_t>(a);
     const double* pb = v + 3 * static_cast<std::size_t>(b);
-    for (int k = 0; k < 3; ++k) {
-      if (pa[k] != pb[k]) return pa[k] < pb[k];
-    }
-    return a < b;
+    return pa[0] == pb[0] && pa[1] == pb[1] && pa[2] == pb[2];
   };
-  std::sort(order.begin(), order.end(), less);
   std::vector<std::int32_t> id(nv, -1);
-  const std::size_t n = order.size();
+  std::vector<std::int32_t> run;
   for (std::size_t i = 0; i < n;) {
     std::size_t j = i + 1;
-    const double* pi = v + 3 * static_cast<std::size_t>(order[i]);
-    while (j < n) {
-      const double* pj = v + 3 * static_cast<std::size_t>(order[j]);
-      if (pi[0] != pj[0] || pi[1] != pj[1] || pi[2] != pj[2]) break;
-      ++j;
+    while (j < n && (key[j] >> 32) == (key[i] >> 32)) ++j;
+    run.clear();
+    for (std::size_t k = i; k < j; ++k) run.push_back(static_cast<std::int32_t>(vertexOf(key[k] & 0xffffffffU)));
+    // The run is in index order: each vertex takes the id of the first earlier one at its position.
+    if (run.size() <= 32) {
+      for (std::size_t a = 0; a < run.size(); ++a) {
+        std::int32_t& out = id[static_cast<std::size_t>(run[a])];
+        out = run[a];
+        for (std::size_t b = 0; b < a; ++b) {
+          if (same(run[b], run[a])) {
+            out = id[static_cast<std::size_t>(run[b])];
+            break;
+          }
+        }
+      }
+    } else {
+      std::sort(run.begin(), run.end(), [v](std::int32_t a, std::int32_t b) {
+        const double* pa = v + 3 * static_cast<std::size_t>(a);
+        const double* pb = v + 3 * static_cast<std::size_t>(b);
+        for (int c = 0; c < 3; ++c) {
+          if (pa[c] != pb[c]) return pa[c] < pb[c];
+        }
+        return a < b;
+      });
+      for (std::size_t a = 0; a < run.size(); ++a) {
+        const bool first = a == 0 || !same(run[a - 1], run[a]);
+        id[static_cast<std::size_t>(run[a])] = first ? run[a] : id[static_cast<std::size_t>(run[a - 1])];
+      }
     }
-    for (std::size_t k = i; k < j; ++k) id[static_cast<std::size_t>(order[k])] = order[i];  // order[i] is the smallest
     i = j;
   }
   return id;
@@ -537,7 +563,9 @@ MeshCheck checkMesh(const Mesh& mesh, const CheckOptions& options) {
   r.signedVolume = signedVolume(mesh);
   r.area = surfaceArea(mesh);
   r.outward = r.signedVolume > 0.0;
-  r.boundaryLoops = countBoundaryLoops(mesh);
+  // A loop needs a boundary edge (both count edges of one face with three distinct indices): a closed
+  // mesh skips the sort of its 3·#F edge keys.
+  r.boundaryLoops = r.topology.boundaryEdges == 0 ? 0 : countBoundaryLoops(mesh);
   if (!(options.maxSliverShare >= 0.0) || !(options.maxSliverShare <= 1.0)) {
     throw InvalidArgument("check: the sliver share must be in [0, 1]");
   }
