@@ -67,14 +67,15 @@ void replaceFace(std::vector<Index>& list, Index from, Index to) {
 
 /// Whether triangle (q0, q1, q2) is acceptable after a move or a split: not float32-degenerate, within the
 /// normal change of its extracted unit normal `ref` (zero: not checked), and not newly below minAngle
-/// (`before`: the smallest angle of the triangle it replaces).
-bool triangleAcceptable(const Vec& q0, const Vec& q1, const Vec& q2, const Vec& ref, double before, double cosMax,
-                        double minAngle) {
+/// (`before()`: the smallest angle of the triangle it replaces, asked for only below minAngle).
+template <typename Before>
+bool triangleAcceptable(const Vec& q0, const Vec& q1, const Vec& q2, const Vec& ref, const Before& before,
+                        double cosMax, double minAngle) {
   if (float32Degenerate(q0, q1, q2)) return false;
   const Vec n = (q1 - q0).cross(q2 - q0);
   if (ref.squaredNorm() > 0.0 && !(n.normalized().dot(ref) >= cosMax)) return false;
   const double angle = minAngleDegrees(q0, q1, q2);
-  return !(angle < minAngle && angle < before);
+  return !(angle < minAngle && angle < before());
 }
 
 /// Whether moving vertex `vertex` to p keeps every triangle around it acceptable.
@@ -86,8 +87,9 @@ bool moveAcceptable(const Work& w, Index vertex, const Vec& p, double cosMax, do
       now[static_cast<std::size_t>(k)] = w.v[static_cast<std::size_t>(t[static_cast<std::size_t>(k)])];
       moved[static_cast<std::size_t>(k)] = t[static_cast<std::size_t>(k)] == vertex ? p : now[static_cast<std::size_t>(k)];
     }
-    if (!triangleAcceptable(moved[0], moved[1], moved[2], w.n0[static_cast<std::size_t>(face)],
-                            minAngleDegrees(now[0], now[1], now[2]), cosMax, minAngle)) {
+    const auto before = [&now] { return minAngleDegrees(now[0], now[1], now[2]); };
+    if (!triangleAcceptable(moved[0], moved[1], moved[2], w.n0[static_cast<std::size_t>(face)], before, cosMax,
+                            minAngle)) {
       return false;
     }
   }
@@ -396,7 +398,7 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
                 &vc = w.v[static_cast<std::size_t>(c)], &vd = w.v[static_cast<std::size_t>(d)];
       const double angleFace = minAngleDegrees(va, vb, vc), angleOther = minAngleDegrees(vb, va, vd);
       const auto fits = [&](const Vec& q0, const Vec& q1, const Vec& q2, const Vec& ref, double parentAngle) {
-        return triangleAcceptable(q0, q1, q2, ref, parentAngle, cosMax, o.minAngle);
+        return triangleAcceptable(q0, q1, q2, ref, [parentAngle] { return parentAngle; }, cosMax, o.minAngle);
       };
       const Vec nFace = w.n0[static_cast<std::size_t>(face)], nOther = w.n0[static_cast<std::size_t>(other)];
       if (!fits(va, p, vc, nFace, angleFace) || !fits(p, vb, vc, nFace, angleFace) ||
