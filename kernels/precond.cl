@@ -28,19 +28,12 @@ __kernel void block_jacobi_dot_chunk(const uint n, const uint bs, __global const
   uint begin, end;
   chunk_range(c, n, &begin, &end);
   real rz = 0;
-  uint i = begin;
+  for (uint i = begin; i < end;) {
 #ifndef REAL_IS_DOUBLE
-  if (bs == 16) {
-    /* The chunk's whole 16-row blocks as z = sum_j M[j][:] r_j, two 8-wide columns a step (M is
-     * symmetric, so its row j is its column j): a row's scalar loop of 16 dependent multiply-adds was
-     * the kernel's cost, not its bytes. The same products added in the same order per row as block_row. */
-    const uint first = min(end, (begin + 15u) / 16u * 16u);
-    for (; i < first; ++i) {
-      const real zi = block_row(i, n, bs, blocks, r);
-      z[i] = zi;
-      rz += r[i] * zi;
-    }
-    for (; i + 16u <= end; i += 16u) {
+    if (bs == 16u && i % 16u == 0u && i + 16u <= end) {
+      /* A whole 16-row block as z = sum_j M[j][:] r_j, two 8-wide columns a step (M is symmetric, so its
+       * row j is its column j): a row's scalar loop of 16 dependent multiply-adds was the kernel's cost,
+       * not its bytes. The same products added in the same order per row as block_row. */
       __global const real* m = blocks + (ulong)i * 16u;
       float8 lo = 0, hi = 0;
       for (uint j = 0; j < 16u; ++j) {
@@ -53,13 +46,14 @@ __kernel void block_jacobi_dot_chunk(const uint n, const uint bs, __global const
       const float8 p = vload8(0, r + i) * lo + vload8(0, r + i + 8u) * hi;
       const float4 q = p.lo + p.hi;
       rz += (q.s0 + q.s2) + (q.s1 + q.s3);
+      i += 16u;
+      continue;
     }
-  }
 #endif
-  for (; i < end; ++i) {
     const real zi = block_row(i, n, bs, blocks, r);
     z[i] = zi;
     rz += r[i] * zi;
+    ++i;
   }
   partial[c] = rz;
 }

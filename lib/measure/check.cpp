@@ -86,9 +86,9 @@ std::size_t countBoundaryLoops(const Mesh& mesh) {
 /// Vertex ids with vertices at identical positions merged (the smallest index of each position), of the
 /// vertices marked in `used` (all when null; the others get -1). Among the marked vertices, two get the
 /// same id exactly when they are at the same position, as over the whole mesh. Identical positions share
-/// a Morton cell, so the vertices are radix sorted by cell (ties in index order) and only each cell's run
-/// is compared, pairwise for a short run, by a sort of positions for a long one: a comparison sort of
-/// all positions took 0.3 s of one thread on fandisk_550k's 1.8M vertices.
+/// a Morton cell, so the vertices are radix sorted by cell and only each cell's run (a few vertices) is
+/// sorted by position: a comparison sort of all positions took 0.2 s of one thread on fandisk_550k's 1.8M
+/// vertices, this 0.05 s.
 std::vector<std::int32_t> weldedIds(const Mesh& mesh, const std::vector<char>* used = nullptr) {
   const auto nv = static_cast<std::size_t>(mesh.vertices.rows());
   const double* v = mesh.vertices.data();
@@ -118,31 +118,18 @@ std::vector<std::int32_t> weldedIds(const Mesh& mesh, const std::vector<char>* u
     while (j < n && (key[j] >> 32) == (key[i] >> 32)) ++j;
     run.clear();
     for (std::size_t k = i; k < j; ++k) run.push_back(static_cast<std::int32_t>(vertexOf(key[k] & 0xffffffffU)));
-    // The run is in index order: each vertex takes the id of the first earlier one at its position.
-    if (run.size() <= 32) {
-      for (std::size_t a = 0; a < run.size(); ++a) {
-        std::int32_t& out = id[static_cast<std::size_t>(run[a])];
-        out = run[a];
-        for (std::size_t b = 0; b < a; ++b) {
-          if (same(run[b], run[a])) {
-            out = id[static_cast<std::size_t>(run[b])];
-            break;
-          }
-        }
+    // Within the cell, by position (ties in index order): the first of each position is its smallest index.
+    std::sort(run.begin(), run.end(), [v](std::int32_t a, std::int32_t b) {
+      const double* pa = v + 3 * static_cast<std::size_t>(a);
+      const double* pb = v + 3 * static_cast<std::size_t>(b);
+      for (int c = 0; c < 3; ++c) {
+        if (pa[c] != pb[c]) return pa[c] < pb[c];
       }
-    } else {
-      std::sort(run.begin(), run.end(), [v](std::int32_t a, std::int32_t b) {
-        const double* pa = v + 3 * static_cast<std::size_t>(a);
-        const double* pb = v + 3 * static_cast<std::size_t>(b);
-        for (int c = 0; c < 3; ++c) {
-          if (pa[c] != pb[c]) return pa[c] < pb[c];
-        }
-        return a < b;
-      });
-      for (std::size_t a = 0; a < run.size(); ++a) {
-        const bool first = a == 0 || !same(run[a - 1], run[a]);
-        id[static_cast<std::size_t>(run[a])] = first ? run[a] : id[static_cast<std::size_t>(run[a - 1])];
-      }
+      return a < b;
+    });
+    for (std::size_t a = 0; a < run.size(); ++a) {
+      const bool first = a == 0 || !same(run[a - 1], run[a]);
+      id[static_cast<std::size_t>(run[a])] = first ? run[a] : id[static_cast<std::size_t>(run[a - 1])];
     }
     i = j;
   }
@@ -714,8 +701,8 @@ SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& opti
   // Queries by groups of up to four consecutive tested faces in the tree's leaf (Morton) order, close
   // together: the asked faces of a group share one walk of the tree with the union of their query boxes,
   // and each keeps the hits that meet its own box. Those are the hits, in the same depth-first order and
-  // under the same bound, of a walk of its own, which a face takes alone (or when the union has more than
-  // perFace hits a face). The walks were 60% of the search on fandisk_550k's 3.7M-face mesh.
+  // under the same bound, of a walk of its own, which each face takes when the union has more than perFace
+  // hits a face. The walks were 60% of the search on fandisk_550k's 3.7M-face mesh.
   const std::vector<std::int64_t>& order = tree.leafFaces();
   const auto ngroups = static_cast<long long>((order.size() + kQueryGroup - 1) / kQueryGroup);
   const bool subset = faces != nullptr;
@@ -724,7 +711,6 @@ SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& opti
   {
     // Exceptions (bad_alloc) are caught per iteration: one leaving the loop would skip its barrier.
     std::vector<Pair> mine;
-    std::vector<std::int64_t> candidates;
     std::vector<BoxTree::Hit> hits;
     // Keeps the `listed` smallest of `mine` once it has grown to twice that.
     auto trim = [&mine, listed] {
@@ -770,18 +756,17 @@ SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& opti
           ++nq;
         }
         if (nq == 0) return;
-        bool alone = nq == 1;
-        if (!alone) {
-          hits.clear();
-          alone = !tree.overlapping(ulo, uhi, hits, perFace * nq);
+        hits.clear();
+        if (!tree.overlapping(ulo, uhi, hits, perFace * nq)) {
+          // More hits than the group's bound: each face walks alone, under its own.
+          for (std::size_t a = 0; a < nq; ++a) {
+            hits.clear();
+            if (!tree.overlapping(qlo[a], qhi[a], hits, perFace)) complete = false;
+            for (const BoxTree::Hit& h : hits) consider(qs[a], qf[a], h.face);
+          }
+          return;
         }
         for (std::size_t a = 0; a < nq; ++a) {
-          if (alone) {
-            candidates.clear();
-            if (!tree.overlapping(qlo[a], qhi[a], candidates, perFace)) complete = false;
-            for (const std::int64_t j : candidates) consider(qs[a], qf[a], j);
-            continue;
-          }
           std::size_t taken = 0;
           for (const BoxTree::Hit& h : hits) {
             bool miss = false;
