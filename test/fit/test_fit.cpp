@@ -7,6 +7,8 @@
 #include "support/recording_interrupter.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/fit.hpp"
+#include "duplexfit/wendland.hpp"
+#include "fit/fit_detail.hpp"
 #include "shapes.hpp"
 #include "test_device.hpp"
 
@@ -160,6 +162,37 @@ TEST_SUITE("fit") {
     REQUIRE(r.report.offsets.size() == 1);
     CHECK(r.report.offsets[0] == doctest::Approx(0.025 * cloud.bounds().sizes().maxCoeff()));
     CHECK(sphereError(r.field, Device::reference(), 2.0 - r.report.offsets[0], r.report.offsets[0]) <= 2e-3);
+  }
+
+  TEST_CASE("fit: a level's float solve that stalls at float's rounding is refined in double to the tolerance") {
+    DUPLEXFIT_OPENCL_DEVICE(dev);
+    const Points centres = testing::fibonacciSphere(600, 0.5);
+    const CsrMatrix a = assembleWendland(centres, 0.15);
+    Eigen::VectorXd truth(centres.rows());
+    for (Eigen::Index i = 0; i < truth.size(); ++i) truth[i] = std::sin(7.0 * centres(i, 0)) + centres(i, 2);
+    const Eigen::VectorXd b = a.multiply(truth);
+    FitOptions o;
+    o.precision = Precision::Float;
+    o.levelTolerance = 1e-10;  // far below what float's b − A x can show
+    o.solver.relativeTolerance = 1e-14;
+    // The float solve alone stalls above it ...
+    const DeviceCsr m = DeviceCsr::upload(dev, a, Precision::Float);
+    const DeviceVector db = DeviceVector::upload(dev, b, Precision::Float);
+    DeviceVector x(dev, static_cast<std::size_t>(b.size()), Precision::Float);
+    const BlockJacobiPreconditioner pre(dev, a, Precision::Float, o.blockSize);
+    const SolveStats alone = solveCg(m, db, x, detail::levelSolverOptions(o, true), &pre);
+    REQUIRE(alone.reason == StopReason::Stagnated);
+    // ... the level solve refines it: the residual recomputed in double meets the tolerance.
+    Eigen::VectorXd w;
+    const SolveStats s = detail::solveLevelSystem(dev, a, b, o, true, w);
+    CHECK(s.converged);
+    CHECK(s.reason == StopReason::Converged);
+    const double rmax = (b - a.multiply(w)).lpNorm<Eigen::Infinity>();
+    MESSAGE("float alone: max residual " << alone.maxResidual << " after " << alone.iterations
+                                         << " iterations; refined: " << rmax << " after " << s.iterations);
+    CHECK(rmax <= 1e-10);
+    CHECK(s.maxResidual == doctest::Approx(rmax).epsilon(1e-6));
+    CHECK(s.iterations > alone.iterations);
   }
 
   TEST_CASE("fit: bad input and options are clear errors") {
