@@ -61,8 +61,8 @@ inline void dpx_field_point_v8(const real x, const real y, const real z, const u
   real sum[10] = {f0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
   const mask8 lane = (mask8)(0, 1, 2, 3, 4, 5, 6, 7);
   for (uint l = 0; l < nlevels; ++l) {
-    const real ox = params[6 * l], oy = params[6 * l + 1], oz = params[6 * l + 2];
-    const real inv_cell = params[6 * l + 3], sigma = params[6 * l + 4], inv_sigma = params[6 * l + 5];
+    __global const real* p = params + 7 * l;
+    const real oy = p[1], oz = p[2], inv_cell = p[3], sigma = p[4], inv_sigma = p[5];
     const int nx = (int)dims[5 * l], ny = (int)dims[5 * l + 1], nz = (int)dims[5 * l + 2];
     const uint cs_off = dims[5 * l + 3], c_off = dims[5 * l + 4];
     const uint n = cell_start[cs_off + (uint)(nx * ny * nz)]; /* the level's centres */
@@ -70,10 +70,12 @@ inline void dpx_field_point_v8(const real x, const real y, const real z, const u
     __global const real* py = px + n;
     __global const real* pz = py + n;
     __global const real* pw = pz + n;
-    const int cx = (int)floor((x - ox) * inv_cell);
-    const int cy = (int)floor((y - oy) * inv_cell);
-    const int cz = (int)floor((z - oz) * inv_cell);
-    if (cx < -1 || cy < -1 || cz < -1 || cx > nx || cy > ny || cz > nz) continue;
+    const real fy = (y - oy) * inv_cell, fz = (z - oz) * inv_cell;
+    if (!(fy >= (real)-1 && fz >= (real)-1 && fy < (real)(ny + 1) && fz < (real)(nz + 1))) continue;
+    int x0 = 0, x1 = -1;
+    dpx_x_span(x, p, nx, &x0, &x1);
+    if (x0 > x1) continue;
+    const int cy = (int)floor(fy), cz = (int)floor(fz);
     const real s2 = sigma * sigma;
     const real h_scale = (real)20 * inv_sigma * inv_sigma;
     real8 f = 0, gx = 0, gy = 0, gz = 0;
@@ -81,8 +83,6 @@ inline void dpx_field_point_v8(const real x, const real y, const real z, const u
     for (int iz = max(cz - 1, 0); iz <= min(cz + 1, nz - 1); ++iz) {
       for (int iy = max(cy - 1, 0); iy <= min(cy + 1, ny - 1); ++iy) {
         const uint row = cs_off + (uint)((iz * ny + iy) * nx);
-        const int x0 = max(cx - 1, 0), x1 = min(cx + 1, nx - 1);
-        if (x0 > x1) continue;
         const uint b = cell_start[row + (uint)x0];
         const uint e = cell_start[row + (uint)x1 + 1];
         for (uint j = b; j < e; j += 8) {

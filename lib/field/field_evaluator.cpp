@@ -1,5 +1,6 @@
-// FieldEvaluator: per-level uniform grids of the field's centres (cells at least σ_k wide, so the 27
-// cells around a query hold every centre within the support), uploaded once; batched evaluation by the
+// FieldEvaluator: per-level grids of the field's centres (cells at least σ_k deep in y and z and an
+// eighth of that wide along x, so that the 3 × 3 rows of cells around a query hold every centre within
+// the support and each row is cut to the support's x-extent), uploaded once; batched evaluation by the
 // eval_field kernels or, on the reference device, by the same body (kernels/field_point.cl) in C++.
 #include <algorithm>
 #include <cmath>
@@ -28,7 +29,7 @@ struct EvaluatorImpl {
   Normalization norm;
   double f0 = -1.0;
   cl_uint levels = 0;
-  std::vector<double> params;           // 6 per level: origin xyz, 1/cell, sigma, 1/sigma
+  std::vector<double> params;           // 7 per level: origin xyz, 1/cell (y, z), sigma, 1/sigma, 1/cell (x)
   std::vector<cl_uint> dims;            // 5 per level: nx, ny, nz, cell_start offset, centre offset
   std::vector<cl_uint> cellStart;       // per level nx*ny*nz + 1 prefix offsets
   std::vector<double> packed;           // x, y, z, w per centre, sorted by cell within each level
@@ -58,6 +59,11 @@ struct EvaluatorImpl {
 namespace {
 
 constexpr std::size_t kMaxCellsPerLevel = std::size_t{1} << 24;
+/// Cells along x per cell in y and z: a query visits in each of its 3 × 3 rows the cells within the
+/// support's x-extent (kernels/field_point.cl, dpx_x_span), on average 2σ + σ/kSplitX of the row, where
+/// cubic σ cells gave 3σ. Cutting each row further to the support's extent at the row's distance in
+/// (y, z) visited fewer centres still but cost more than it saved in the value kernel (docs/benchmarks.md).
+constexpr std::size_t kSplitX = 8;
 constexpr std::size_t kChunk = std::size_t{1} << 20;
 /// Reals past the last centre in the device buffer: 8 records of x, y, z, w (kernels/eval_field.cl, _v8).
 constexpr std::size_t kCentrePad = 4 * 8;
@@ -70,22 +76,23 @@ void addLevel(detail::EvaluatorImpl& e, const FieldLevel& level) {
     lo = c.colwise().minCoeff().transpose();
     hi = c.colwise().maxCoeff().transpose();
   }
-  double cell = level.sigma;
+  double cell = level.sigma, cellX = cell / static_cast<double>(kSplitX);
   std::size_t nx = 1, ny = 1, nz = 1;
   for (;;) {
     const Eigen::Vector3d ext = (hi - lo) / cell;
-    nx = static_cast<std::size_t>(std::floor(ext.x())) + 1;
+    nx = static_cast<std::size_t>(std::floor((hi.x() - lo.x()) / cellX)) + 1;
     ny = static_cast<std::size_t>(std::floor(ext.y())) + 1;
     nz = static_cast<std::size_t>(std::floor(ext.z())) + 1;
     if (nx * ny * nz <= kMaxCellsPerLevel) break;
-    cell *= 1.25;  // coarser cells: still ≥ σ, so the 27-cell neighbourhood stays complete
+    cell *= 1.25;  // coarser cells: still ≥ σ in y and z, so the 3 × 3 rows stay complete
+    cellX = cell / static_cast<double>(kSplitX);
   }
   const std::size_t cells = nx * ny * nz;
   std::vector<std::size_t> cellOf(n);
   std::vector<cl_uint> count(cells + 1, 0);
   for (std::size_t j = 0; j < n; ++j) {
     const auto i = static_cast<Eigen::Index>(j);
-    const auto ix = std::min(nx - 1, static_cast<std::size_t>((c(i, 0) - lo.x()) / cell));
+    const auto ix = std::min(nx - 1, static_cast<std::size_t>((c(i, 0) - lo.x()) / cellX));
     const auto iy = std::min(ny - 1, static_cast<std::size_t>((c(i, 1) - lo.y()) / cell));
     const auto iz = std::min(nz - 1, static_cast<std::size_t>((c(i, 2) - lo.z()) / cell));
     cellOf[j] = (iz * ny + iy) * nx + ix;
@@ -108,7 +115,7 @@ void addLevel(detail::EvaluatorImpl& e, const FieldLevel& level) {
     e.packed[slot + 2] = c(i, 2);
     e.packed[slot + 3] = level.weights[i];
   }
-  e.params.insert(e.params.end(), {lo.x(), lo.y(), lo.z(), 1.0 / cell, level.sigma, 1.0 / level.sigma});
+  e.params.insert(e.params.end(), {lo.x(), lo.y(), lo.z(), 1.0 / cell, level.sigma, 1.0 / level.sigma, 1.0 / cellX});
   e.dims.insert(e.dims.end(), {static_cast<cl_uint>(nx), static_cast<cl_uint>(ny), static_cast<cl_uint>(nz),
                                static_cast<cl_uint>(cellBase), static_cast<cl_uint>(centreBase)});
   ++e.levels;
