@@ -60,6 +60,18 @@ int cmdFit(int argc, char** argv) {
   addNumber(app, "tol", fit.solver.relativeTolerance, "CG relative tolerance");
   addNumber(app, "coarse-tol", fit.coarseTolerance, "CG relative tolerance of the levels below the finest");
   addInteger(app, "max-iterations", fit.solver.maxIterations, "CG iteration cap");
+  app.add_option_function<std::string>(
+         "--preconditioner",
+         [&fit](const std::string& v) {
+           fit.preconditioner = v == "jacobi"         ? PreconditionerKind::Jacobi
+                                : v == "block-jacobi" ? PreconditionerKind::BlockJacobi
+                                                      : PreconditionerKind::Fsai;
+         },
+         "the level solves' preconditioner: fsai (default), block-jacobi or jacobi")
+      ->check(CLI::IsMember({"fsai", "block-jacobi", "jacobi"}))
+      ->type_name("P");
+  addNumber(app, "fsai-threshold", fit.fsaiThreshold,
+            "FSAI keeps the couplings |a_ij| >= T sqrt(a_ii a_jj), 0 .. 1 (default 0.2)");
   addNumber(app, "cell", o.surface.cell, "marching grid cell size");
   addInteger(app, "resolution", o.surface.resolution, "marching grid cells along the longest side");
   addMeshFinishOptions(app, o.surface.finish);

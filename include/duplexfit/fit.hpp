@@ -18,7 +18,8 @@ namespace duplexfit {
 /// Preconditioner of the level solves.
 enum class PreconditionerKind {
   Jacobi,       ///< the paper's choice; only a scaling here (constant diagonal 1 + λ_k)
-  BlockJacobi   ///< exact inverses of diagonal blocks of spatially ordered centres (default)
+  BlockJacobi,  ///< exact inverses of diagonal blocks of spatially ordered centres
+  Fsai          ///< factorised sparse approximate inverse on each centre's strongest couplings (default)
 };
 
 /// Fit parameters. Every field documents its unit and default; defaults follow docs/method.md.
@@ -79,11 +80,17 @@ struct FitOptions {
   double levelTolerance = 1e-6;
   /// CG relative tolerance of the levels below the finest (1 … M − 1), whose remaining error the next
   /// level fits again (docs/method.md §5, "Coarse tolerance"); 0: solver.relativeTolerance, as the finest
-  /// level. At 1e-3 the CG iterations of those levels fall by about half with E_0 and the meshes' Metro
-  /// figures unchanged to 3 digits (fandisk_50k, eight_110k, wheel_118k); at 1e-2 wheel_118k's E_0 rose 7%.
-  double coarseTolerance = 1e-3;
-  PreconditionerKind preconditioner = PreconditionerKind::BlockJacobi;
+  /// level. With block Jacobi, 1e-3 halved those levels' iterations with E_0 and the Metro figures unchanged
+  /// to 3 digits; with FSAI (the default) they take 6–14 iterations even at 1e-5, and at 1e-3 their fields
+  /// depend on the CG's path enough to leave a 27-vertex blob in notched_cube_24k's inward offset, so the
+  /// default is 1e-5 (docs/method.md §5).
+  double coarseTolerance = 1e-5;
+  PreconditionerKind preconditioner = PreconditionerKind::Fsai;
   int blockSize = 16;  ///< rows per block of the block Jacobi preconditioner
+  /// The FSAI factor's pattern: couplings |a_ij| ≥ fsaiThreshold·√(a_ii a_jj) below the diagonal, at most
+  /// fsaiMaxNeighbours a row (the strongest). 0.2 keeps about 4 a row on the shared clouds' levels.
+  double fsaiThreshold = 0.2;
+  int fsaiMaxNeighbours = 32;
   /// The memory budget: before the first level, the finest level's lower bound (every input point a centre
   /// with its offset and off-surface companions, one non-zero a row) is checked; before each level's
   /// assembly, its estimate (estimateLevelBytes with the sampled non-zero count). Over it: MemoryLimitExceeded.
@@ -141,6 +148,10 @@ struct FitReport {
   std::string device;
   std::string deviceTuning;  ///< Device::tuning().describe(): launch shape and field kernel (report.json "device_tuning")
   std::string precision;
+  /// The level solves' preconditioner ("fsai-4", "block-jacobi-16", "jacobi"; report.json "preconditioner").
+  /// Distributed fits name the one of their gathered levels and say that the distributed levels use
+  /// block Jacobi on each rank's rows.
+  std::string preconditioner;
   std::size_t inputPoints = 0, duplicatesMerged = 0, zeroNormals = 0;
   std::vector<double> offsets;         ///< δ in input units
   OffSurfaceSide offSurfaceSide = OffSurfaceSide::Outside;  ///< where the off-surface points went

@@ -60,6 +60,8 @@ void detail::checkFitOptions(const FitOptions& o) {
   if (!(o.levelTolerance >= 0.0) || !std::isfinite(o.levelTolerance)) bad("levelTolerance must be >= 0");
   if (!(o.coarseTolerance >= 0.0 && o.coarseTolerance < 1.0)) bad("coarseTolerance must be in [0, 1)");
   if (o.blockSize < 1 || o.blockSize > 256) bad("blockSize must be in [1, 256]");
+  if (!(o.fsaiThreshold >= 0.0 && o.fsaiThreshold <= 1.0)) bad("fsaiThreshold must be in [0, 1]");
+  if (o.fsaiMaxNeighbours < 0 || o.fsaiMaxNeighbours > 64) bad("fsaiMaxNeighbours must be in [0, 64]");
   // 0 iterations would leave every level's weights at 0: empty meshes that look like a finished fit.
   if (o.solver.maxIterations < 1) bad("solver.maxIterations must be at least 1 (--max-iterations)");
   for (double d : o.offsets) {
@@ -97,6 +99,19 @@ SolverOptions detail::levelSolverOptions(const FitOptions& options, bool finest)
   return so;
 }
 
+std::string detail::preconditionerName(const FitOptions& options) {
+  switch (options.preconditioner) {
+    case PreconditionerKind::Fsai: {
+      std::ostringstream s;
+      s << "fsai (threshold " << options.fsaiThreshold << ", at most " << options.fsaiMaxNeighbours << " couplings a row)";
+      return s.str();
+    }
+    case PreconditionerKind::BlockJacobi: return "block-jacobi-" + std::to_string(options.blockSize);
+    case PreconditionerKind::Jacobi: return "jacobi";
+  }
+  return "jacobi";
+}
+
 SolveStats detail::solveLevelSystem(const Device& device, const CsrMatrix& a, const Eigen::VectorXd& b,
                                     const FitOptions& options, bool finest, Eigen::VectorXd& weights,
                                     Interrupter* monitor) {
@@ -111,7 +126,10 @@ SolveStats detail::solveLevelSystem(const Device& device, const CsrMatrix& a, co
   const DeviceVector db = DeviceVector::upload(device, b, options.precision);
   DeviceVector x(device, static_cast<std::size_t>(b.size()), options.precision);
   std::unique_ptr<Preconditioner> pre;
-  if (options.preconditioner == PreconditionerKind::BlockJacobi) {
+  if (options.preconditioner == PreconditionerKind::Fsai) {
+    pre = std::make_unique<FsaiPreconditioner>(device, a, options.precision, options.fsaiThreshold,
+                                               options.fsaiMaxNeighbours);
+  } else if (options.preconditioner == PreconditionerKind::BlockJacobi) {
     pre = std::make_unique<BlockJacobiPreconditioner>(device, a, options.precision, options.blockSize);
   } else {
     pre = std::make_unique<JacobiPreconditioner>(m);
@@ -202,9 +220,14 @@ double estimateLevelBytes(std::size_t centres, std::size_t nonZeros, const FitOp
   const double n = static_cast<double>(centres), z = static_cast<double>(nonZeros);
   // CSR: host (int32 column, double value) and device (int32 column, s-byte value), row pointers on both.
   const double csr = z * (12.0 + 4.0 + s) + 8.0 * (n + 1.0);
-  // Block Jacobi: the inverted blocks on the host (double) and the device.
+  // Block Jacobi: the inverted blocks on the host (double) and the device. FSAI: G and Gᵀ on the host
+  // (int32 column, double value) and the device, row pointers on both, and one more device vector; its
+  // rows are counted at 8 entries (about 5 on the shared clouds at the default threshold).
+  const double fsaiEntries = n * std::min(8.0, std::max(0, options.fsaiMaxNeighbours) + 1.0);
   const double blocks = options.preconditioner == PreconditionerKind::BlockJacobi
                             ? n * static_cast<double>(std::max(1, options.blockSize)) * (8.0 + s)
+                        : options.preconditioner == PreconditionerKind::Fsai
+                            ? 2.0 * (fsaiEntries * (12.0 + 4.0 + s) + 8.0 * (n + 1.0)) + n * s
                             : n * s;
   // CG: six device vectors; host: centres (24 B), targets, f_{k-1}, b, weights (8 B each).
   const double vectors = n * (6.0 * s + 24.0 + 4.0 * 8.0);
@@ -222,6 +245,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   rep.device = device.description();
   rep.deviceTuning = device.tuning().describe();
   rep.precision = precisionName(options.precision);
+  rep.preconditioner = detail::preconditionerName(options);
   rep.inputPoints = points.size();
   rep.zeroNormals = points.zeroNormals();
 

@@ -119,6 +119,9 @@ ConstraintOptions levelConstraintOptions(const FitOptions& options, const std::v
 /// A level's solver options: options.solver with the absolute tolerance levelTolerance (when it has none)
 /// and, below the finest level, the relative tolerance coarseTolerance.
 SolverOptions levelSolverOptions(const FitOptions& options, bool finest);
+/// The name of the level solves' preconditioner under `options` ("fsai-4", "block-jacobi-16", "jacobi").
+std::string preconditionerName(const FitOptions& options);
+
 /// Solves a level's system A w = b on the device as every level of a fit is solved: A and b uploaded in
 /// options.precision, the preconditioner of options, PCG with levelSolverOptions. An empty b is a
 /// converged solve with no weights. `monitor` (if not null) gets the solver's events.

@@ -32,6 +32,7 @@ void addFitReport(Json& w, const FitReport& rep) {
   w["device"] = rep.device;
   w["device_tuning"] = rep.deviceTuning;
   w["precision"] = rep.precision;
+  w["preconditioner"] = rep.preconditioner;
   w["offsets"] = rep.offsets;
   w["off_surface_side"] = offSurfaceSideName(rep.offSurfaceSide);
   w["sigma0"] = rep.sigma0;

@@ -175,6 +175,7 @@ TEST_SUITE("fit") {
     o.precision = Precision::Float;
     o.levelTolerance = 1e-10;  // far below what float's b − A x can show
     o.solver.relativeTolerance = 1e-14;
+    o.preconditioner = PreconditionerKind::BlockJacobi;  // the same as the solve alone below
     // The float solve alone stalls above it ...
     const DeviceCsr m = DeviceCsr::upload(dev, a, Precision::Float);
     const DeviceVector db = DeviceVector::upload(dev, b, Precision::Float);

@@ -1,0 +1,216 @@
+// Factorised sparse approximate inverse (FSAI) preconditioner: M⁻¹ = Gᵀ G ≈ A⁻¹ with G lower triangular,
+// row i of G supported on i and the strong couplings j < i, |a_ij| ≥ τ √(a_ii a_jj) (at most the
+// `maxNeighbours` strongest), after Kolotilina and Yeremin (1993): each row solves A[S,S] g = e_i on its
+// pattern S and is scaled so that (G A Gᵀ)_ii = 1. Built on the host in
+// double (each row independently), applied on the device as two SpMVs, G then Gᵀ (docs/method.md §5).
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/linalg.hpp"
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+namespace duplexfit {
+
+namespace {
+
+/// a_ij from row i of a (columns sorted), 0 when not stored.
+double entry(const CsrMatrix& a, Index i, Index j) {
+  const auto b = a.colIdx.begin() + a.rowPtr[static_cast<std::size_t>(i)];
+  const auto e = a.colIdx.begin() + a.rowPtr[static_cast<std::size_t>(i) + 1];
+  const auto it = std::lower_bound(b, e, j);
+  return it != e && *it == j ? a.values[static_cast<std::size_t>(it - a.colIdx.begin())] : 0.0;
+}
+
+}  // namespace
+
+FsaiPreconditioner::FsaiPreconditioner(const Device& device, const CsrMatrix& a, Precision precision,
+                                       double threshold, int maxNeighbours)
+    : threshold_(threshold), maxNeighbours_(maxNeighbours), n_(static_cast<std::size_t>(a.rows)) {
+  if (!(threshold >= 0.0 && threshold <= 1.0)) throw InvalidArgument("FSAI: threshold must be in [0, 1]");
+  if (maxNeighbours < 0 || maxNeighbours > 64) throw InvalidArgument("FSAI: maxNeighbours must be in [0, 64]");
+  if (a.rows != a.cols) throw InvalidArgument("FSAI: the matrix is not square");
+  const auto n = static_cast<std::ptrdiff_t>(n_);
+  const auto k = static_cast<std::size_t>(maxNeighbours);
+  std::vector<double> diagonal(n_);
+  for (Index i = 0; i < a.rows; ++i) {
+    const double d = entry(a, i, i);
+    if (!(d > 0.0) || !std::isfinite(d)) {
+      throw InvalidArgument("FSAI: diagonal entry " + std::to_string(i) + " is " + std::to_string(d) +
+                            "; a symmetric positive definite matrix needs a_ii > 0");
+    }
+    diagonal[static_cast<std::size_t>(i)] = d;
+  }
+  // The pattern is a threshold, not "the k largest": samplings with many equal distances would otherwise
+  // choose among ties, and a rounding-level change of the input would change the choice.
+  const auto strong = [&](Index i, Index j, double v) {
+    return std::abs(v) >= threshold * std::sqrt(diagonal[static_cast<std::size_t>(i)] * diagonal[static_cast<std::size_t>(j)]);
+  };
+  // Row i's pattern: the diagonal and its strong couplings below it, the k strongest where there are more.
+  CsrMatrix g;
+  g.rows = a.rows;
+  g.cols = a.cols;
+  g.rowPtr.assign(n_ + 1, 0);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t i = 0; i < n; ++i) {
+    std::size_t lower = 0;
+    for (Index e = a.rowPtr[static_cast<std::size_t>(i)]; e < a.rowPtr[static_cast<std::size_t>(i) + 1]; ++e) {
+      const Index j = a.colIdx[static_cast<std::size_t>(e)];
+      if (j < i && strong(static_cast<Index>(i), j, a.values[static_cast<std::size_t>(e)])) ++lower;
+    }
+    g.rowPtr[static_cast<std::size_t>(i) + 1] = static_cast<Index>(std::min(lower, k) + 1);
+  }
+  for (std::size_t i = 0; i < n_; ++i) g.rowPtr[i + 1] += g.rowPtr[i];
+  const auto nnz = static_cast<std::size_t>(g.rowPtr[n_]);
+  g.colIdx.resize(nnz);
+  g.values.resize(nnz);
+  std::size_t fallbacks = 0;
+#pragma omp parallel reduction(+ : fallbacks)
+  {
+    std::vector<std::pair<double, Index>> cand;
+    std::vector<Index> s;
+    std::vector<double> l, y;  // the pattern block's Cholesky factor (row-major, lower) and the solve
+#pragma omp for schedule(dynamic, 4096)
+    for (std::ptrdiff_t i = 0; i < n; ++i) {
+      const auto row = static_cast<std::size_t>(i);
+      cand.clear();
+      double diag = 0.0;
+      for (Index e = a.rowPtr[row]; e < a.rowPtr[row + 1]; ++e) {
+        const Index j = a.colIdx[static_cast<std::size_t>(e)];
+        const double v = a.values[static_cast<std::size_t>(e)];
+        if (j < i && strong(static_cast<Index>(i), j, v)) cand.emplace_back(-std::abs(v), j);
+        if (j == i) diag = v;
+      }
+      const std::size_t m = std::min(cand.size(), k);
+      // beyond k: the strongest couplings first, ties by column (the same pattern on every thread)
+      std::partial_sort(cand.begin(), cand.begin() + static_cast<std::ptrdiff_t>(m), cand.end());
+      s.resize(m);
+      for (std::size_t p = 0; p < m; ++p) s[p] = cand[p].second;
+      std::sort(s.begin(), s.end());
+      s.push_back(static_cast<Index>(i));
+      const std::size_t size = s.size();
+      // Cholesky of A[S,S] (lower triangle, filled row by row), then L Lᵀ g = e_last: L y = e_last gives
+      // y = (0, …, 0, 1/l_last,last), so g = L⁻ᵀ y and the scaled row is g / √g_last.
+      l.assign(size * size, 0.0);
+      bool spd = true;
+      for (std::size_t p = 0; p < size && spd; ++p) {
+        for (std::size_t q = 0; q <= p; ++q) {
+          double v = p == q ? (p + 1 == size ? diag : entry(a, s[p], s[p])) : entry(a, s[p], s[q]);
+          for (std::size_t t = 0; t < q; ++t) v -= l[p * size + t] * l[q * size + t];
+          if (p == q) {
+            if (!(v > 0.0)) {
+              spd = false;
+              break;
+            }
+            l[p * size + p] = std::sqrt(v);
+          } else {
+            l[p * size + q] = v / l[q * size + q];
+          }
+        }
+      }
+      const std::size_t out = static_cast<std::size_t>(g.rowPtr[row]);
+      if (spd) {
+        y.assign(size, 0.0);
+        const std::size_t last = size - 1;
+        y[last] = 1.0 / l[last * size + last];
+        for (std::size_t p = size; p-- > 0;) {  // Lᵀ g = y, back substitution
+          double v = y[p];
+          for (std::size_t t = p + 1; t < size; ++t) v -= l[t * size + p] * y[t];
+          y[p] = v / l[p * size + p];
+        }
+        // g_last = 1 / l_last,last², so g / √g_last = g · l_last,last
+        const double scale = l[last * size + last];
+        for (std::size_t p = 0; p < size; ++p) {
+          g.colIdx[out + p] = s[p];
+          g.values[out + p] = y[p] * scale;
+        }
+        spd = std::all_of(g.values.begin() + static_cast<std::ptrdiff_t>(out),
+                          g.values.begin() + static_cast<std::ptrdiff_t>(out + size), [](double v) { return std::isfinite(v); });
+      }
+      if (!spd) {  // not numerically SPD: this row falls back to Jacobi's 1/√a_ii (checked > 0 above)
+        ++fallbacks;
+        for (std::size_t p = 0; p < size; ++p) {
+          g.colIdx[out + p] = s[p];
+          g.values[out + p] = p + 1 == size ? 1.0 / std::sqrt(diag) : 0.0;
+        }
+      }
+    }
+  }
+  fallbacks_ = fallbacks;
+  // Gᵀ in CSR: a counting sort by column, rows split between the threads (each counts its own rows'
+  // columns; a column's entries go in row order, so each row of Gᵀ comes out sorted).
+  CsrMatrix gt;
+  gt.rows = a.rows;
+  gt.cols = a.cols;
+  gt.rowPtr.assign(n_ + 1, 0);
+  gt.colIdx.resize(nnz);
+  gt.values.resize(nnz);
+  int threads = 1;
+#ifdef _OPENMP
+  threads = std::max(1, omp_get_max_threads());
+#endif
+  std::vector<std::vector<Index>> counts(static_cast<std::size_t>(threads));
+#pragma omp parallel num_threads(threads)
+  {
+    int t = 0;
+#ifdef _OPENMP
+    t = omp_get_thread_num();
+#endif
+    const std::size_t r0 = n_ * static_cast<std::size_t>(t) / static_cast<std::size_t>(threads);
+    const std::size_t r1 = n_ * (static_cast<std::size_t>(t) + 1) / static_cast<std::size_t>(threads);
+    std::vector<Index>& c = counts[static_cast<std::size_t>(t)];
+    c.assign(n_, 0);
+    for (auto e = static_cast<std::size_t>(g.rowPtr[r0]); e < static_cast<std::size_t>(g.rowPtr[r1]); ++e) {
+      ++c[static_cast<std::size_t>(g.colIdx[e])];
+    }
+#pragma omp barrier
+#pragma omp single
+    {
+      // per column: the threads' slots one after the other; c becomes each thread's next slot
+      Index at = 0;
+      for (std::size_t col = 0; col < n_; ++col) {
+        gt.rowPtr[col] = at;
+        for (auto& tc : counts) {
+          const Index here = tc[col];
+          tc[col] = at;
+          at += here;
+        }
+      }
+      gt.rowPtr[n_] = at;
+    }
+    for (std::size_t i = r0; i < r1; ++i) {
+      for (Index e = g.rowPtr[i]; e < g.rowPtr[i + 1]; ++e) {
+        const auto slot = static_cast<std::size_t>(c[static_cast<std::size_t>(g.colIdx[static_cast<std::size_t>(e)])]++);
+        gt.colIdx[slot] = static_cast<Index>(i);
+        gt.values[slot] = g.values[static_cast<std::size_t>(e)];
+      }
+    }
+  }
+  g_ = DeviceCsr::upload(device, g, precision);
+  gt_ = DeviceCsr::upload(device, gt, precision);
+  tmp_ = DeviceVector(device, n_, precision);
+}
+
+std::string FsaiPreconditioner::name() const {
+  std::ostringstream s;
+  s << "fsai (threshold " << threshold_ << ", at most " << maxNeighbours_ << " couplings a row)";
+  return s.str();
+}
+
+void FsaiPreconditioner::apply(const DeviceVector& r, DeviceVector& z) const {
+  if (r.size() != n_ || z.size() != n_) {
+    throw InvalidArgument("FSAI: vectors of " + std::to_string(r.size()) + " and " + std::to_string(z.size()) +
+                          " entries for a " + std::to_string(n_) + "-row preconditioner");
+  }
+  spmv(g_, r, tmp_);
+  spmv(gt_, tmp_, z);
+}
+
+}  // namespace duplexfit
