@@ -1,11 +1,10 @@
 // Factorised sparse approximate inverse (FSAI) preconditioner: M⁻¹ = Gᵀ G ≈ A⁻¹ with G lower triangular,
 // row i of G supported on i and the strong couplings j < i, |a_ij| ≥ τ √(a_ii a_jj) (at most the
 // `maxNeighbours` strongest), after Kolotilina and Yeremin (1993): each row solves A[S,S] g = e_i on its
-// pattern S and is scaled so that (G A Gᵀ)_ii = 1. Built on the host in
-// double (each row independently), applied on the device as two SpMVs, G then Gᵀ (docs/method.md §5).
+// pattern S and is scaled so that (G A Gᵀ)_ii = 1. Built on the host in double (each row independently),
+// applied on the device as two SpMVs, G then Gᵀ (docs/method.md §5).
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -37,6 +36,7 @@ FsaiPreconditioner::FsaiPreconditioner(const Device& device, const CsrMatrix& a,
   if (!(threshold >= 0.0 && threshold <= 1.0)) throw InvalidArgument("FSAI: threshold must be in [0, 1]");
   if (maxNeighbours < 0 || maxNeighbours > 64) throw InvalidArgument("FSAI: maxNeighbours must be in [0, 64]");
   if (a.rows != a.cols) throw InvalidArgument("FSAI: the matrix is not square");
+  a.validate();  // sorted, in-range columns and finite values before any entry is looked up
   const auto n = static_cast<std::ptrdiff_t>(n_);
   const auto k = static_cast<std::size_t>(maxNeighbours);
   std::vector<double> diagonal(n_);
@@ -81,12 +81,11 @@ FsaiPreconditioner::FsaiPreconditioner(const Device& device, const CsrMatrix& a,
     for (std::ptrdiff_t i = 0; i < n; ++i) {
       const auto row = static_cast<std::size_t>(i);
       cand.clear();
-      double diag = 0.0;
+      const double diag = diagonal[row];
       for (Index e = a.rowPtr[row]; e < a.rowPtr[row + 1]; ++e) {
         const Index j = a.colIdx[static_cast<std::size_t>(e)];
         const double v = a.values[static_cast<std::size_t>(e)];
         if (j < i && strong(static_cast<Index>(i), j, v)) cand.emplace_back(-std::abs(v), j);
-        if (j == i) diag = v;
       }
       const std::size_t m = std::min(cand.size(), k);
       // beyond k: the strongest couplings first, ties by column (the same pattern on every thread)
@@ -102,7 +101,7 @@ FsaiPreconditioner::FsaiPreconditioner(const Device& device, const CsrMatrix& a,
       bool spd = true;
       for (std::size_t p = 0; p < size && spd; ++p) {
         for (std::size_t q = 0; q <= p; ++q) {
-          double v = p == q ? (p + 1 == size ? diag : entry(a, s[p], s[p])) : entry(a, s[p], s[q]);
+          double v = p == q ? diagonal[static_cast<std::size_t>(s[p])] : entry(a, s[p], s[q]);
           for (std::size_t t = 0; t < q; ++t) v -= l[p * size + t] * l[q * size + t];
           if (p == q) {
             if (!(v > 0.0)) {
