@@ -66,7 +66,8 @@ def fit(points, normals, offsets=(), *, device=None, progress=None, levels=None,
         side_test=_D["side_test"], sign_anchors=_D["sign_anchors"],
         medial_constraints=_D["medial_constraints"], offset_correction=_D["offset_correction"],
         drop_zero_normal_points=_D["drop_zero_normal_points"], precision=_D["precision"],
-        preconditioner=_D["preconditioner"], level_tolerance=_D["level_tolerance"],
+        preconditioner=_D["preconditioner"], fsai_threshold=_D["fsai_threshold"],
+        level_tolerance=_D["level_tolerance"],
         coarse_tolerance=_D["coarse_tolerance"], max_iterations=_D["max_iterations"],
         relative_tolerance=_D["relative_tolerance"], merge_duplicates=True):
     """Fits the field to an oriented cloud and returns a duplexfit.Field.
@@ -79,6 +80,7 @@ def fit(points, normals, offsets=(), *, device=None, progress=None, levels=None,
         each spec is opened once and reused, like Device.default()).
     progress: None or callable(stage, fraction, message); return False to cancel.
     levels: number of levels M (None: from the cloud). precision: "float" or "double".
+    preconditioner: "fsai" (default), "block-jacobi" or "jacobi"; fsai_threshold: FSAI's coupling threshold.
     The other keywords are the library's FitOptions (docs/method.md), with its defaults; smoothing > 0
     approximates noisy data instead of interpolating. merge_duplicates: merge points with identical
     positions first (their normals averaged).

@@ -170,6 +170,7 @@ py::dict fitReportDict(const FitReport& r) {
   d["device"] = r.device;
   d["device_tuning"] = r.deviceTuning;
   d["precision"] = r.precision;
+  d["preconditioner"] = r.preconditioner;
   d["input_points"] = r.inputPoints;
   d["duplicates_merged"] = r.duplicatesMerged;
   d["zero_normals"] = r.zeroNormals;
@@ -221,9 +222,19 @@ class OptionReader {
 };
 
 PreconditionerKind parsePreconditioner(const std::string& text) {
+  if (text == "fsai") return PreconditionerKind::Fsai;
   if (text == "block-jacobi" || text == "block_jacobi") return PreconditionerKind::BlockJacobi;
   if (text == "jacobi") return PreconditionerKind::Jacobi;
-  throw InvalidArgument("preconditioner: '" + text + "' is neither 'block-jacobi' nor 'jacobi'");
+  throw InvalidArgument("preconditioner: '" + text + "' is none of 'fsai', 'block-jacobi' and 'jacobi'");
+}
+
+const char* preconditionerText(PreconditionerKind kind) {
+  switch (kind) {
+    case PreconditionerKind::Fsai: return "fsai";
+    case PreconditionerKind::BlockJacobi: return "block-jacobi";
+    case PreconditionerKind::Jacobi: return "jacobi";
+  }
+  return "fsai";
 }
 
 void readFitOptions(OptionReader& r, FitOptions& o) {
@@ -248,9 +259,10 @@ void readFitOptions(OptionReader& r, FitOptions& o) {
   std::string precision = precisionName(o.precision);
   r.get("precision", precision);
   o.precision = parsePrecision(precision.c_str());
-  std::string preconditioner = o.preconditioner == PreconditionerKind::Jacobi ? "jacobi" : "block-jacobi";
+  std::string preconditioner = preconditionerText(o.preconditioner);
   r.get("preconditioner", preconditioner);
   o.preconditioner = parsePreconditioner(preconditioner);
+  r.get("fsai_threshold", o.fsaiThreshold);
 }
 
 py::dict fitDefaults() {
@@ -273,7 +285,8 @@ py::dict fitDefaults() {
   d["max_iterations"] = o.solver.maxIterations;
   d["relative_tolerance"] = o.solver.relativeTolerance;
   d["precision"] = precisionName(o.precision);
-  d["preconditioner"] = o.preconditioner == PreconditionerKind::Jacobi ? "jacobi" : "block-jacobi";
+  d["preconditioner"] = preconditionerText(o.preconditioner);
+  d["fsai_threshold"] = o.fsaiThreshold;
   return d;
 }
 

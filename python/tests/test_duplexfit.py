@@ -59,6 +59,7 @@ class SphereFit(unittest.TestCase):
         self.assertEqual(self.field.levels, r["levels"])
         self.assertEqual(len(r["level_reports"]), r["levels"])
         self.assertLess(r["e0"], 1e-4)
+        self.assertTrue(r["preconditioner"].startswith("fsai"), r["preconditioner"])
         self.assertEqual(self.field.offsets, [DELTA])
         lo, hi = self.field.bounds
         np.testing.assert_allclose(lo, self.points.min(axis=0))
@@ -66,6 +67,11 @@ class SphereFit(unittest.TestCase):
         self.assertEqual(len(self.field.sigmas), self.field.levels)
         self.assertGreater(self.field.sigmas[0], self.field.sigmas[-1])
         print(f"\nfit of {len(self.points)} points: {self.fit_seconds:.2f} s, {self.field}")
+
+    def test_block_jacobi_on_request(self):
+        field = duplexfit.fit(self.points, self.normals, [DELTA], preconditioner="block-jacobi", levels=3)
+        self.assertEqual(field.report["preconditioner"], "block-jacobi-16")
+        self.assertTrue(field.report["converged"])
 
     def test_zero_level_at_the_sphere(self):
         # New points on the sphere, not the fitted ones.
@@ -198,6 +204,8 @@ class SphereFit(unittest.TestCase):
             duplexfit.fit(bad, self.normals)
         with self.assertRaisesRegex(duplexfit.InvalidArgument, "precision"):
             duplexfit.fit(self.points, self.normals, precision="half")
+        with self.assertRaisesRegex(duplexfit.InvalidArgument, "preconditioner"):
+            duplexfit.fit(self.points, self.normals, preconditioner="ilu")
         with tempfile.TemporaryDirectory() as tmp:
             missing = os.path.join(tmp, "missing.dpxf")
             with self.assertRaises(duplexfit.IoError) as caught:
