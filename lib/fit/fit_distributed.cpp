@@ -229,7 +229,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
   rep.deviceTuning = device.tuning().describe();
   rep.precision = precisionName(options.precision);
   rep.preconditioner = detail::preconditionerName(options) + " (gathered levels); block-jacobi-" +
-                       std::to_string(options.preconditioner == PreconditionerKind::BlockJacobi ? options.blockSize : 1) +
+                       std::to_string(options.preconditioner == PreconditionerKind::Jacobi ? 1 : options.blockSize) +
                        " on each rank's rows (distributed levels)";
   rep.inputPoints = static_cast<std::size_t>(comm.allreduce(static_cast<std::int64_t>(points.size()), ReduceOp::Sum));
   rep.zeroNormals = static_cast<std::size_t>(comm.allreduce(static_cast<std::int64_t>(points.zeroNormals()), ReduceOp::Sum));
@@ -589,7 +589,8 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
         tu = Clock::now();
         notify(interrupter, FitStage::Solve, k, levels, std::to_string(nonZeros) + " non-zeros (this rank's rows)",
                at(FitStage::Solve));
-        const int blockSize = options.preconditioner == PreconditionerKind::BlockJacobi ? options.blockSize : 1;
+        // FSAI is not distributed: the distributed levels keep block Jacobi on each rank's rows with it.
+        const int blockSize = options.preconditioner == PreconditionerKind::Jacobi ? 1 : options.blockSize;
         const detail::DistributedSolve solved = detail::solveDistributedCg(
             comm, system, b, weights, detail::levelSolverOptions(options, k >= levels), options.precision, blockSize);
         solve = solved.stats;
