@@ -203,25 +203,30 @@ DeviceCsr DeviceCsr::upload(const Device& device, const CsrMatrix& a, Precision 
                                                   a.rowPtr.data()));
     }
     if (s.nnz > 0) {
-      DUPLEXFIT_CL_CHECK(
-          queue.enqueueWriteBuffer(s.colBuf, CL_TRUE, 0, s.nnz * sizeof(Index), a.colIdx.data()));
-      if constexpr (std::is_same_v<T, double>) {
-        DUPLEXFIT_CL_CHECK(queue.enqueueWriteBuffer(s.valBuf, CL_TRUE, 0, valueBytes, a.values.data()));
-      } else {
-        // Rounded straight into the mapped buffer: no host copy of the values in float (on a CPU device
-        // the map is the buffer's own memory; a large level's copy cost 0.4 s in fresh pages).
+      // The columns and values are written through mapped buffers, filled by all threads: on a CPU device
+      // the map is the buffer's own memory, whose fresh pages are then faulted in in parallel, and the
+      // float values are rounded in place (a large level's host copy in float cost 0.4 s).
+      const auto count = static_cast<std::ptrdiff_t>(s.nnz);
+      const auto fill = [&](const cl::Buffer& buffer, std::size_t bytes, const auto& write) {
         cl_int status = CL_SUCCESS;
-        void* mapped = queue.enqueueMapBuffer(s.valBuf, CL_TRUE, CL_MAP_WRITE_INVALIDATE_REGION, 0, valueBytes,
-                                              nullptr, nullptr, &status);
+        void* mapped =
+            queue.enqueueMapBuffer(buffer, CL_TRUE, CL_MAP_WRITE_INVALIDATE_REGION, 0, bytes, nullptr, nullptr, &status);
         DUPLEXFIT_CL_CHECK(status);
-        auto* out = static_cast<float*>(mapped);
-        const auto count = static_cast<std::ptrdiff_t>(s.nnz);
-#pragma omp parallel for schedule(static)
-        for (std::ptrdiff_t k = 0; k < count; ++k) out[k] = static_cast<float>(a.values[static_cast<std::size_t>(k)]);
+        write(mapped);
         cl::Event unmapped;
-        DUPLEXFIT_CL_CHECK(queue.enqueueUnmapMemObject(s.valBuf, mapped, nullptr, &unmapped));
+        DUPLEXFIT_CL_CHECK(queue.enqueueUnmapMemObject(buffer, mapped, nullptr, &unmapped));
         DUPLEXFIT_CL_CHECK(unmapped.wait());
-      }
+      };
+      fill(s.colBuf, s.nnz * sizeof(Index), [&](void* mapped) {
+        auto* out = static_cast<Index*>(mapped);
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t k = 0; k < count; ++k) out[k] = a.colIdx[static_cast<std::size_t>(k)];
+      });
+      fill(s.valBuf, valueBytes, [&](void* mapped) {
+        auto* out = static_cast<T*>(mapped);
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t k = 0; k < count; ++k) out[k] = static_cast<T>(a.values[static_cast<std::size_t>(k)]);
+      });
     }
   });
   return m;
