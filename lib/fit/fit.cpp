@@ -60,7 +60,7 @@ void detail::checkFitOptions(const FitOptions& o) {
   if (!(o.levelTolerance >= 0.0) || !std::isfinite(o.levelTolerance)) bad("levelTolerance must be >= 0");
   if (!(o.coarseTolerance >= 0.0 && o.coarseTolerance < 1.0)) bad("coarseTolerance must be in [0, 1)");
   if (o.blockSize < 1 || o.blockSize > 256) bad("blockSize must be in [1, 256]");
-  if (!(o.fsaiThreshold >= 0.0 && o.fsaiThreshold <= 1.0)) bad("fsaiThreshold must be in [0, 1]");
+  if (!(o.fsaiThreshold >= 0.0 && o.fsaiThreshold <= 1.0)) bad("fsaiThreshold must be in [0, 1] (--fsai-threshold)");
   if (o.fsaiMaxNeighbours < 0 || o.fsaiMaxNeighbours > 64) bad("fsaiMaxNeighbours must be in [0, 64]");
   // 0 iterations would leave every level's weights at 0: empty meshes that look like a finished fit.
   if (o.solver.maxIterations < 1) bad("solver.maxIterations must be at least 1 (--max-iterations)");
