@@ -62,11 +62,7 @@ int cmdFit(int argc, char** argv) {
   addInteger(app, "max-iterations", fit.solver.maxIterations, "CG iteration cap");
   app.add_option_function<std::string>(
          "--preconditioner",
-         [&fit](const std::string& v) {
-           fit.preconditioner = v == "jacobi"         ? PreconditionerKind::Jacobi
-                                : v == "block-jacobi" ? PreconditionerKind::BlockJacobi
-                                                      : PreconditionerKind::Fsai;
-         },
+         [&fit](const std::string& v) { fit.preconditioner = parsePreconditionerKind(v); },
          "the level solves' preconditioner: fsai (default), block-jacobi or jacobi")
       ->check(CLI::IsMember({"fsai", "block-jacobi", "jacobi"}))
       ->type_name("P");

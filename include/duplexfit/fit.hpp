@@ -143,6 +143,11 @@ enum class OffSurfaceSide {
 };
 /// "outside", "inside", "none (offsets on both sides)", "both sides (no offsets)" (report.json's words).
 const char* offSurfaceSideName(OffSurfaceSide side) noexcept;
+/// "fsai", "block-jacobi" or "jacobi": the spelling of the CLI's --preconditioner and the Python option.
+const char* preconditionerKindName(PreconditionerKind kind) noexcept;
+/// The inverse of preconditionerKindName ("block_jacobi" is accepted too).
+/// @throws InvalidArgument naming the text for any other.
+PreconditionerKind parsePreconditionerKind(const std::string& text);
 
 struct FitReport {
   std::string device;

@@ -133,7 +133,9 @@ class BlockJacobiPreconditioner final : public Preconditioner {
   BlockJacobiPreconditioner(const Device& device, const CsrMatrix& a, Precision precision, int blockSize = 16);
   void apply(const DeviceVector& r, DeviceVector& z) const override;
   double applyDot(const DeviceVector& r, DeviceVector& z) const override;
-  std::string name() const override { return "block-jacobi-" + std::to_string(blockSize_); }
+  std::string name() const override { return describe(blockSize_); }
+  /// The name of a block Jacobi preconditioner with blocks of blockSize rows ("block-jacobi-16").
+  static std::string describe(int blockSize) { return "block-jacobi-" + std::to_string(blockSize); }
   int blockSize() const noexcept { return blockSize_; }
 
  private:
@@ -157,7 +159,9 @@ class FsaiPreconditioner final : public Preconditioner {
   FsaiPreconditioner(const Device& device, const CsrMatrix& a, Precision precision, double threshold = 0.2,
                      int maxNeighbours = 32);
   void apply(const DeviceVector& r, DeviceVector& z) const override;
-  std::string name() const override;
+  std::string name() const override { return describe(threshold_, maxNeighbours_); }
+  /// The name of an FSAI preconditioner with these parameters ("fsai (threshold 0.2, at most 32 couplings a row)").
+  static std::string describe(double threshold, int maxNeighbours);
   /// Entries of G a row, on average (the diagonal included).
   double entriesPerRow() const noexcept { return n_ > 0 ? static_cast<double>(g_.nonZeros()) / static_cast<double>(n_) : 0.0; }
   /// Rows whose pattern block was not numerically SPD and that fell back to 1/√a_ii.

@@ -101,12 +101,8 @@ SolverOptions detail::levelSolverOptions(const FitOptions& options, bool finest)
 
 std::string detail::preconditionerName(const FitOptions& options) {
   switch (options.preconditioner) {
-    case PreconditionerKind::Fsai: {
-      std::ostringstream s;
-      s << "fsai (threshold " << options.fsaiThreshold << ", at most " << options.fsaiMaxNeighbours << " couplings a row)";
-      return s.str();
-    }
-    case PreconditionerKind::BlockJacobi: return "block-jacobi-" + std::to_string(options.blockSize);
+    case PreconditionerKind::Fsai: return FsaiPreconditioner::describe(options.fsaiThreshold, options.fsaiMaxNeighbours);
+    case PreconditionerKind::BlockJacobi: return BlockJacobiPreconditioner::describe(options.blockSize);
     case PreconditionerKind::Jacobi: return "jacobi";
   }
   return "jacobi";
@@ -140,39 +136,31 @@ SolveStats detail::solveLevelSystem(const Device& device, const CsrMatrix& a, co
   // A float solve can stall just above an absolute tolerance near float's own rounding of b − A x (a small
   // coarse level asked for 1e-6 by --coarse-tol, say): refine in mixed precision. The residual in double on
   // the host, a float solve for the correction (whose rounding scales with the small residual), the sum
-  // in double; at most two rounds, the statistics from the double residual.
-  for (int round = 0; round < 2 && stats.reason == StopReason::Stagnated && options.precision == Precision::Float;
-       ++round) {
+  // in double; at most two corrections, the statistics from the last residual in double.
+  for (int round = 0; stats.reason == StopReason::Stagnated && options.precision == Precision::Float; ++round) {
     const Eigen::VectorXd r = b - a.multiply(weights);
-    const double bnorm = b.norm(), rnorm = r.norm(), rmax = r.lpNorm<Eigen::Infinity>();
+    const double bnorm = b.norm(), rnorm = r.norm();
+    stats.relativeResidual = rnorm / bnorm;
+    stats.maxResidual = r.lpNorm<Eigen::Infinity>();
     const double target = stats.tolerance * bnorm;
-    if (rnorm <= target || (so.absoluteTolerance > 0.0 && rmax <= so.absoluteTolerance)) {
+    if (rnorm <= target || (so.absoluteTolerance > 0.0 && stats.maxResidual <= so.absoluteTolerance)) {
       stats.reason = StopReason::Converged;
       stats.converged = true;
-      stats.relativeResidual = rnorm / bnorm;
-      stats.maxResidual = rmax;
       break;
     }
+    if (round == 2) break;
     SolverOptions correction = so;
     correction.relativeTolerance = std::min(0.5, target / rnorm);
     const DeviceVector dr = DeviceVector::upload(device, r, options.precision);
     DeviceVector dx(device, static_cast<std::size_t>(r.size()), options.precision);
     const SolveStats more = solveCg(m, dr, dx, correction, pre.get(), monitor);
+    stats.iterations += more.iterations;
+    stats.seconds += more.seconds;
     if (more.reason == StopReason::Cancelled) {
       stats.reason = more.reason;
       break;
     }
     weights += dx.download();
-    stats.iterations += more.iterations;
-    stats.seconds += more.seconds;
-    const Eigen::VectorXd after = b - a.multiply(weights);
-    stats.relativeResidual = after.norm() / bnorm;
-    stats.maxResidual = after.lpNorm<Eigen::Infinity>();
-    if (stats.relativeResidual * bnorm <= target ||
-        (so.absoluteTolerance > 0.0 && stats.maxResidual <= so.absoluteTolerance)) {
-      stats.reason = StopReason::Converged;
-      stats.converged = true;
-    }
   }
   return stats;
 }
@@ -189,6 +177,22 @@ struct LevelWork : LevelReport {
 const char* fitStageName(FitStage stage) noexcept {
   const auto i = static_cast<std::size_t>(stage);
   return i < std::size(kStageNames) ? kStageNames[i] : "other";
+}
+
+const char* preconditionerKindName(PreconditionerKind kind) noexcept {
+  switch (kind) {
+    case PreconditionerKind::Fsai: return "fsai";
+    case PreconditionerKind::BlockJacobi: return "block-jacobi";
+    case PreconditionerKind::Jacobi: return "jacobi";
+  }
+  return "fsai";
+}
+
+PreconditionerKind parsePreconditionerKind(const std::string& text) {
+  if (text == "fsai") return PreconditionerKind::Fsai;
+  if (text == "block-jacobi" || text == "block_jacobi") return PreconditionerKind::BlockJacobi;
+  if (text == "jacobi") return PreconditionerKind::Jacobi;
+  throw InvalidArgument("preconditioner: '" + text + "' is none of 'fsai', 'block-jacobi' and 'jacobi'");
 }
 
 const char* offSurfaceSideName(OffSurfaceSide side) noexcept {

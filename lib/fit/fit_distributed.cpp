@@ -228,8 +228,9 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
   rep.device = device.description();
   rep.deviceTuning = device.tuning().describe();
   rep.precision = precisionName(options.precision);
-  rep.preconditioner = detail::preconditionerName(options) + " (gathered levels); block-jacobi-" +
-                       std::to_string(options.preconditioner == PreconditionerKind::Jacobi ? 1 : options.blockSize) +
+  rep.preconditioner = detail::preconditionerName(options) + " (gathered levels); " +
+                       (options.preconditioner == PreconditionerKind::Jacobi ? std::string("jacobi")
+                                                                              : BlockJacobiPreconditioner::describe(options.blockSize)) +
                        " on each rank's rows (distributed levels)";
   rep.inputPoints = static_cast<std::size_t>(comm.allreduce(static_cast<std::int64_t>(points.size()), ReduceOp::Sum));
   rep.zeroNormals = static_cast<std::size_t>(comm.allreduce(static_cast<std::int64_t>(points.zeroNormals()), ReduceOp::Sum));

@@ -39,19 +39,18 @@ FsaiPreconditioner::FsaiPreconditioner(const Device& device, const CsrMatrix& a,
   a.validate();  // sorted, in-range columns and finite values before any entry is looked up
   const auto n = static_cast<std::ptrdiff_t>(n_);
   const auto k = static_cast<std::size_t>(maxNeighbours);
-  std::vector<double> diagonal(n_);
+  const Eigen::VectorXd diagonal = a.diagonal();
   for (Index i = 0; i < a.rows; ++i) {
-    const double d = entry(a, i, i);
+    const double d = diagonal[i];
     if (!(d > 0.0) || !std::isfinite(d)) {
       throw InvalidArgument("FSAI: diagonal entry " + std::to_string(i) + " is " + std::to_string(d) +
                             "; a symmetric positive definite matrix needs a_ii > 0");
     }
-    diagonal[static_cast<std::size_t>(i)] = d;
   }
   // The pattern is a threshold, not "the k largest": samplings with many equal distances would otherwise
   // choose among ties, and a rounding-level change of the input would change the choice.
   const auto strong = [&](Index i, Index j, double v) {
-    return std::abs(v) >= threshold * std::sqrt(diagonal[static_cast<std::size_t>(i)] * diagonal[static_cast<std::size_t>(j)]);
+    return std::abs(v) >= threshold * std::sqrt(diagonal[i] * diagonal[j]);
   };
   // Row i's pattern: the diagonal and its strong couplings below it, the k strongest where there are more.
   CsrMatrix g;
@@ -81,7 +80,7 @@ FsaiPreconditioner::FsaiPreconditioner(const Device& device, const CsrMatrix& a,
     for (std::ptrdiff_t i = 0; i < n; ++i) {
       const auto row = static_cast<std::size_t>(i);
       cand.clear();
-      const double diag = diagonal[row];
+      const double diag = diagonal[i];
       for (Index e = a.rowPtr[row]; e < a.rowPtr[row + 1]; ++e) {
         const Index j = a.colIdx[static_cast<std::size_t>(e)];
         const double v = a.values[static_cast<std::size_t>(e)];
@@ -101,7 +100,7 @@ FsaiPreconditioner::FsaiPreconditioner(const Device& device, const CsrMatrix& a,
       bool spd = true;
       for (std::size_t p = 0; p < size && spd; ++p) {
         for (std::size_t q = 0; q <= p; ++q) {
-          double v = p == q ? diagonal[static_cast<std::size_t>(s[p])] : entry(a, s[p], s[q]);
+          double v = p == q ? diagonal[s[p]] : entry(a, s[p], s[q]);
           for (std::size_t t = 0; t < q; ++t) v -= l[p * size + t] * l[q * size + t];
           if (p == q) {
             if (!(v > 0.0)) {
@@ -197,9 +196,9 @@ FsaiPreconditioner::FsaiPreconditioner(const Device& device, const CsrMatrix& a,
   tmp_ = DeviceVector(device, n_, precision);
 }
 
-std::string FsaiPreconditioner::name() const {
+std::string FsaiPreconditioner::describe(double threshold, int maxNeighbours) {
   std::ostringstream s;
-  s << "fsai (threshold " << threshold_ << ", at most " << maxNeighbours_ << " couplings a row)";
+  s << "fsai (threshold " << threshold << ", at most " << maxNeighbours << " couplings a row)";
   return s.str();
 }
 

@@ -221,22 +221,6 @@ class OptionReader {
   std::vector<std::string> used_;
 };
 
-PreconditionerKind parsePreconditioner(const std::string& text) {
-  if (text == "fsai") return PreconditionerKind::Fsai;
-  if (text == "block-jacobi" || text == "block_jacobi") return PreconditionerKind::BlockJacobi;
-  if (text == "jacobi") return PreconditionerKind::Jacobi;
-  throw InvalidArgument("preconditioner: '" + text + "' is none of 'fsai', 'block-jacobi' and 'jacobi'");
-}
-
-const char* preconditionerText(PreconditionerKind kind) {
-  switch (kind) {
-    case PreconditionerKind::Fsai: return "fsai";
-    case PreconditionerKind::BlockJacobi: return "block-jacobi";
-    case PreconditionerKind::Jacobi: return "jacobi";
-  }
-  return "fsai";
-}
-
 void readFitOptions(OptionReader& r, FitOptions& o) {
   r.get("offsets", o.offsets);
   r.get("offsets_relative", o.offsetsRelative);
@@ -259,9 +243,9 @@ void readFitOptions(OptionReader& r, FitOptions& o) {
   std::string precision = precisionName(o.precision);
   r.get("precision", precision);
   o.precision = parsePrecision(precision.c_str());
-  std::string preconditioner = preconditionerText(o.preconditioner);
+  std::string preconditioner = preconditionerKindName(o.preconditioner);
   r.get("preconditioner", preconditioner);
-  o.preconditioner = parsePreconditioner(preconditioner);
+  o.preconditioner = parsePreconditionerKind(preconditioner);
   r.get("fsai_threshold", o.fsaiThreshold);
 }
 
@@ -285,7 +269,7 @@ py::dict fitDefaults() {
   d["max_iterations"] = o.solver.maxIterations;
   d["relative_tolerance"] = o.solver.relativeTolerance;
   d["precision"] = precisionName(o.precision);
-  d["preconditioner"] = preconditionerText(o.preconditioner);
+  d["preconditioner"] = preconditionerKindName(o.preconditioner);
   d["fsai_threshold"] = o.fsaiThreshold;
   return d;
 }
