@@ -76,16 +76,24 @@ void addLevel(detail::EvaluatorImpl& e, const FieldLevel& level) {
     lo = c.colwise().minCoeff().transpose();
     hi = c.colwise().maxCoeff().transpose();
   }
+  // Where the table would exceed kMaxCellsPerLevel, the x-cells widen first (σ/4, σ/2, σ) and only then
+  // the cells grow in y and z: a row of σ/2-wide x-cells visits 2½σ where 1.5625σ-deep rows (the first
+  // that fits fandisk_550k's finest level with eighth-wide x-cells) visit 2.4× the cross-section.
   double cell = level.sigma, cellX = cell / static_cast<double>(kSplitX);
   std::size_t nx = 1, ny = 1, nz = 1;
-  for (;;) {
+  for (std::size_t split = kSplitX;;) {
+    cellX = cell / static_cast<double>(split);
     const Eigen::Vector3d ext = (hi - lo) / cell;
     nx = static_cast<std::size_t>(std::floor((hi.x() - lo.x()) / cellX)) + 1;
     ny = static_cast<std::size_t>(std::floor(ext.y())) + 1;
     nz = static_cast<std::size_t>(std::floor(ext.z())) + 1;
     if (nx * ny * nz <= kMaxCellsPerLevel) break;
+    if (split > 1) {
+      split /= 2;
+      continue;
+    }
     cell *= 1.25;  // coarser cells: still ≥ σ in y and z, so the 3 × 3 rows stay complete
-    cellX = cell / static_cast<double>(kSplitX);
+    split = kSplitX;
   }
   const std::size_t cells = nx * ny * nz;
   std::vector<std::size_t> cellOf(n);

@@ -147,6 +147,83 @@ TEST_SUITE("field") {
     });
   }
 
+  TEST_CASE("field: levels too fine for a full cell table (wider x-cells, then deeper cells) match the brute-force sum") {
+    // Clusters of centres spread over a large box with a small support: the evaluator's table of σ-deep,
+    // σ/8-wide cells would pass 2^24 cells. Level 2 (σ = 0.004 over 1 × 1 × 0.26) fits with σ/4-wide
+    // x-cells; level 3 (σ = 0.0015 over the unit cube) not even with σ-wide ones, so its cells grow in y and
+    // z too. Each must still find every centre within the support.
+    std::mt19937 rng(21);
+    std::uniform_real_distribution<double> u(-0.5, 0.5), w(-0.3, 0.3), unit(-1.0, 1.0);
+    std::vector<FieldLevel> levels;
+    FieldLevel coarse;
+    coarse.sigma = 0.4;
+    coarse.centres.resize(40, 3);
+    coarse.weights.resize(40);
+    for (int j = 0; j < 40; ++j) {
+      coarse.centres.row(j) << u(rng), u(rng), u(rng);
+      coarse.weights[j] = w(rng);
+    }
+    levels.push_back(coarse);
+    Points seeds(0, 3);
+    for (const auto& [sigma, zExtent] : {std::pair{0.004, 0.26}, std::pair{0.0015, 1.0}}) {
+      const int clusters = 150, each = 12;
+      FieldLevel l;
+      l.sigma = sigma;
+      l.centres.resize(clusters * each + 2, 3);
+      l.weights.resize(clusters * each + 2);
+      seeds.resize(clusters, 3);
+      for (int c = 0; c < clusters; ++c) {
+        seeds.row(c) << u(rng), u(rng), zExtent * u(rng);
+        for (int j = 0; j < each; ++j) {
+          l.centres.row(c * each + j) = seeds.row(c) + sigma * Eigen::RowVector3d(unit(rng), unit(rng), unit(rng));
+          l.weights[c * each + j] = w(rng);
+        }
+      }
+      // The box's corners.
+      l.centres.row(clusters * each) << -0.5 - sigma, -0.5 - sigma, -0.5 * zExtent - sigma;
+      l.centres.row(clusters * each + 1) << 0.5 + sigma, 0.5 + sigma, 0.5 * zExtent + sigma;
+      l.weights.tail(2).setConstant(0.2);
+      levels.push_back(std::move(l));
+    }
+    Normalization n;
+    n.centre = Eigen::Vector3d(0.5, -1.0, 2.0);
+    n.scale = 2.0;
+    const ImplicitField f(n, -1.0, std::move(levels), {}, Eigen::AlignedBox3d(Eigen::Vector3d(0, -1.5, 1.5), Eigen::Vector3d(1, -0.5, 2.5)));
+    // Queries within a support of the clusters of both fine levels, and at their centres.
+    const int per = 4;
+    Points q(2 * 150 * per, 3);
+    Eigen::Index row = 0;
+    for (std::size_t k = 1; k <= 2; ++k) {
+      const FieldLevel& l = f.levels()[k];
+      for (int c = 0; c < 150; ++c) {
+        for (int j = 0; j < per; ++j) {
+          const Eigen::RowVector3d x = j == 0 ? Eigen::RowVector3d(l.centres.row(c * 12))
+                                              : Eigen::RowVector3d(l.centres.row(c * 12) +
+                                                                   1.5 * l.sigma * Eigen::RowVector3d(unit(rng), unit(rng), unit(rng)));
+          q.row(row++) = x / n.scale + n.centre.transpose();
+        }
+      }
+    }
+    std::vector<double> fs(static_cast<std::size_t>(q.rows()));
+    std::vector<Eigen::Vector3d> gs(fs.size());
+    for (Eigen::Index i = 0; i < q.rows(); ++i) {
+      fs[static_cast<std::size_t>(i)] = f.value(q.row(i).transpose());
+      gs[static_cast<std::size_t>(i)] = f.gradient(q.row(i).transpose());
+    }
+    forEachDeviceAndPrecision([&](const Device& d, Precision p) {
+      const double tol = p == Precision::Double ? 1e-10 : 2e-4;
+      const FieldSamples s = f.evaluate(d, q, FieldDerivatives::Gradient, p);
+      int bad = 0;
+      for (Eigen::Index i = 0; i < q.rows(); ++i) {
+        const double fv = fs[static_cast<std::size_t>(i)];
+        const Eigen::Vector3d& g = gs[static_cast<std::size_t>(i)];
+        if (std::abs(s.values[i] - fv) > tol * (1.0 + std::abs(fv))) ++bad;
+        if ((s.gradients.row(i).transpose() - g).norm() > tol * (1.0 + g.norm()) * 10) ++bad;
+      }
+      CHECK(bad == 0);
+    });
+  }
+
   TEST_CASE("field: a partial evaluator sums only the first levels") {
     const ImplicitField f = randomField(5);
     const Points q = randomQueries(f, 50, 6);
