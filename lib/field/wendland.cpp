@@ -1,11 +1,15 @@
 // Assembly of the level system Φ + λI (docs/method.md §5) as a CSR matrix: a radius search with the
-// support σ gives each row's neighbours, which are re-sorted by column and mapped through φ(d/σ).
-// Rows are processed in chunks so that the neighbour lists never exist for all rows at once.
+// support σ gives each row's neighbours, which are sorted by column and mapped through φ(d/σ). The
+// search runs on a grid of σ cells over the centres (spatial/cell_grid.hpp), or on a k-d tree
+// (NeighborIndex) where that grid's table would be too large; both find the same neighbours at the same
+// distances, so the matrix is the same. Rows are processed in chunks so that the neighbour lists never
+// exist for all rows at once.
 #include "duplexfit/wendland.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <atomic>
 #include <exception>
 #include <limits>
 #include <new>
@@ -15,6 +19,12 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/neighbors.hpp"
 #include "field/wendland_detail.hpp"
+#include "spatial/cell_grid.hpp"
+#include "spatial/search_stop.hpp"
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 namespace duplexfit {
 
@@ -93,11 +103,9 @@ void checkAssemblyArguments(const Points& centres, double sigma, double lambda) 
   checkCentres(centres);
 }
 
-/// The assembly over an index of `centres` (rowOf empty) or of a superset of them (rowOf maps each
-/// indexed point to its centre row, −1 for points that are not centres).
-CsrMatrix assemble(const Points& centres, double sigma, double lambda, const NeighborIndex& index,
-                   const std::vector<Index>& rowOf, const detail::NonZeroCheck& beforeAllocating = {},
-                   Interrupter* interrupter = nullptr) {
+/// The assembly with the radius searches on a k-d tree of the centres (where the grid is not usable).
+CsrMatrix assembleOnTree(const Points& centres, double sigma, double lambda, const NeighborIndex& index,
+                         const detail::NonZeroCheck& beforeAllocating, Interrupter* interrupter) {
   const auto n = static_cast<Index>(centres.rows());
   CsrMatrix a;
   a.rows = n;
@@ -114,8 +122,6 @@ CsrMatrix assemble(const Points& centres, double sigma, double lambda, const Nei
     // The estimate's margin may not fit where the matrix itself does: grow as needed instead.
   }
   const double diagonal = 1.0 + lambda;
-  const bool mapped = !rowOf.empty();
-  auto columnOf = [&](Index indexed) { return mapped ? rowOf[static_cast<std::size_t>(indexed)] : indexed; };
 
   Points block;
   std::vector<std::int64_t> rowStart;
@@ -125,21 +131,8 @@ CsrMatrix assemble(const Points& centres, double sigma, double lambda, const Nei
     // Each row is sorted by column below: the hits' distance order is not needed.
     const NeighborLists lists = index.radiusSearchUnsorted(block, sigma, interrupter);
 
-    // Entries per row (neighbours that are centres), as offsets into this chunk's part of the matrix.
-    rowStart.assign(static_cast<std::size_t>(len) + 1, 0);
-    if (mapped) {
-#pragma omp parallel for schedule(static)
-      for (Index i = 0; i < len; ++i) {
-        std::int64_t count = 0;
-        for (auto k = lists.offsets[static_cast<std::size_t>(i)]; k < lists.offsets[static_cast<std::size_t>(i) + 1]; ++k) {
-          count += columnOf(lists.indices[static_cast<std::size_t>(k)]) >= 0 ? 1 : 0;
-        }
-        rowStart[static_cast<std::size_t>(i) + 1] = count;
-      }
-      for (std::size_t i = 0; i < static_cast<std::size_t>(len); ++i) rowStart[i + 1] += rowStart[i];
-    } else {
-      rowStart.assign(lists.offsets.begin(), lists.offsets.end());
-    }
+    // Entries per row, as offsets into this chunk's part of the matrix.
+    rowStart.assign(lists.offsets.begin(), lists.offsets.end());
 
     const std::int64_t base = a.rowPtr[static_cast<std::size_t>(start)];
     const std::int64_t total = base + rowStart.back();
@@ -167,10 +160,7 @@ CsrMatrix assemble(const Points& centres, double sigma, double lambda, const Nei
           const auto from = static_cast<std::size_t>(lists.offsets[static_cast<std::size_t>(i)]);
           const auto to = static_cast<std::size_t>(lists.offsets[static_cast<std::size_t>(i) + 1]);
           scratch.clear();
-          for (std::size_t k = from; k < to; ++k) {
-            const Index col = columnOf(lists.indices[k]);
-            if (col >= 0) scratch.push_back(Entry{col, lists.distances[k]});
-          }
+          for (std::size_t k = from; k < to; ++k) scratch.push_back(Entry{lists.indices[k], lists.distances[k]});
           sortByColumn(scratch.data(), scratch.data() + scratch.size());
           const Index row = start + i;
           const auto out = static_cast<std::size_t>(base + rowStart[static_cast<std::size_t>(i)]);
@@ -191,32 +181,146 @@ CsrMatrix assemble(const Points& centres, double sigma, double lambda, const Nei
   return a;
 }
 
+/// The assembly with the radius searches on a grid of σ cells over the centres. In each chunk every thread
+/// takes a contiguous run of rows, collects each row's entries (sorted by column) in its own buffer and
+/// counts them; after the prefix sum of the counts it copies its buffer into place.
+CsrMatrix assembleOnGrid(const Points& centres, double sigma, double lambda, const detail::CellGrid& grid,
+                         const detail::NonZeroCheck& beforeAllocating, Interrupter* interrupter) {
+  const auto n = static_cast<Index>(centres.rows());
+  CsrMatrix a;
+  a.rows = n;
+  a.cols = n;
+  a.rowPtr.assign(static_cast<std::size_t>(n) + 1, 0);
+  if (n == 0) return a;
+  detail::SearchStop stop(interrupter);
+  const auto query = [&centres](Index i, double* q) {
+    for (int c = 0; c < 3; ++c) q[c] = centres(i, c);
+  };
+  {
+    // Non-zeros expected from evenly spaced rows, as estimateNonZeros does it on the tree.
+    const Index s = std::min(n, kSampleRows);
+    std::int64_t hits = 0;
+    for (Index i = 0; i < s; ++i) {
+      double q[3];
+      query(static_cast<Index>((std::int64_t{i} * n) / s), q);
+      grid.within(q, sigma, [&hits](Index, double) { ++hits; });
+    }
+    const double estimate = 1.15 * static_cast<double>(hits) / static_cast<double>(s) * static_cast<double>(n) + 4096.0;
+    const auto reserve = static_cast<std::size_t>(std::min(estimate, static_cast<double>(kMaxNonZeros)));
+    if (beforeAllocating) beforeAllocating(reserve);
+    try {
+      a.colIdx.reserve(reserve);
+      a.values.reserve(reserve);
+    } catch (const std::bad_alloc&) {
+      // The estimate's margin may not fit where the matrix itself does: grow as needed instead.
+    }
+  }
+  const double diagonal = 1.0 + lambda;
+#ifdef _OPENMP
+  const auto threads = static_cast<std::size_t>(std::max(1, omp_get_max_threads()));
+#else
+  const std::size_t threads = 1;
+#endif
+  std::vector<std::vector<Entry>> buffers(threads);
+  std::vector<std::int64_t> rowStart;
+  for (Index start = 0; start < n; start += std::min(kChunkRows, n - start)) {
+    if (stop.skip(0)) break;
+    const Index len = std::min(kChunkRows, n - start);
+    rowStart.assign(static_cast<std::size_t>(len) + 1, 0);
+    std::exception_ptr error;
+    std::atomic<bool> failed{false};
+    const auto fail = [&] {
+#pragma omp critical(duplexfit_wendland_error)
+      if (!error) error = std::current_exception();
+      failed.store(true);
+    };
+#pragma omp parallel num_threads(static_cast<int>(threads))
+    {
+#ifdef _OPENMP
+      const auto t = static_cast<std::size_t>(omp_get_thread_num()), nt = static_cast<std::size_t>(omp_get_num_threads());
+#else
+      const std::size_t t = 0, nt = 1;
+#endif
+      const auto first = static_cast<Index>(static_cast<std::int64_t>(len) * static_cast<std::int64_t>(t) / static_cast<std::int64_t>(nt));
+      const auto last = static_cast<Index>(static_cast<std::int64_t>(len) * static_cast<std::int64_t>(t + 1) / static_cast<std::int64_t>(nt));
+      std::vector<Entry>& buffer = buffers[t];
+      try {
+        buffer.clear();
+        for (Index i = first; i < last; ++i) {
+          const std::size_t before = buffer.size();
+          double q[3];
+          query(start + i, q);
+          grid.within(q, sigma, [&buffer](Index col, double d) { buffer.push_back(Entry{col, d}); });
+          sortByColumn(buffer.data() + before, buffer.data() + buffer.size());
+          rowStart[static_cast<std::size_t>(i) + 1] = static_cast<std::int64_t>(buffer.size() - before);
+        }
+      } catch (...) {
+        fail();
+      }
+#pragma omp barrier
+#pragma omp single
+      {
+        try {
+          if (!failed.load()) {
+            for (std::size_t i = 0; i < static_cast<std::size_t>(len); ++i) rowStart[i + 1] += rowStart[i];
+            const std::int64_t base = a.rowPtr[static_cast<std::size_t>(start)];
+            const std::int64_t total = base + rowStart.back();
+            if (total > kMaxNonZeros) {
+              throw InvalidArgument("assembleWendland: more than 2^31 - 1 non-zeros (sigma " + std::to_string(sigma) +
+                                    " is too large for " + std::to_string(n) + " centres)");
+            }
+            for (Index i = 0; i < len; ++i) {
+              a.rowPtr[static_cast<std::size_t>(start + i) + 1] = static_cast<Index>(base + rowStart[static_cast<std::size_t>(i) + 1]);
+            }
+            a.colIdx.resize(static_cast<std::size_t>(total));
+            a.values.resize(static_cast<std::size_t>(total));
+          }
+        } catch (...) {
+          fail();
+        }
+      }
+      if (!failed.load()) {
+        const auto out = static_cast<std::size_t>(a.rowPtr[static_cast<std::size_t>(start + first)]);
+        Index* col = a.colIdx.data() + out;
+        double* val = a.values.data() + out;
+        std::size_t k = 0;
+        for (Index i = first; i < last; ++i) {
+          const Index row = start + i;
+          const auto end = static_cast<std::size_t>(rowStart[static_cast<std::size_t>(i) + 1] - rowStart[static_cast<std::size_t>(first)]);
+          for (; k < end; ++k) {
+            col[k] = buffer[k].col;
+            val[k] = buffer[k].col == row ? diagonal : wendland(buffer[k].distance / sigma);
+          }
+        }
+      }
+    }
+    if (error) std::rethrow_exception(error);
+  }
+  stop.throwIfStopped();
+  return a;
+}
+
+/// The assembly on the grid when its table fits `maxGridCells`, else on a k-d tree.
+CsrMatrix assembleAny(const Points& centres, double sigma, double lambda, const detail::NonZeroCheck& beforeAllocating,
+                      Interrupter* interrupter, std::size_t maxGridCells) {
+  checkAssemblyArguments(centres, sigma, lambda);
+  const detail::CellGrid grid(centres, sigma, maxGridCells);
+  if (grid.usable()) return assembleOnGrid(centres, sigma, lambda, grid, beforeAllocating, interrupter);
+  const NeighborIndex index(centres);
+  return assembleOnTree(centres, sigma, lambda, index, beforeAllocating, interrupter);
+}
+
 }  // namespace
 
 CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
-  checkAssemblyArguments(centres, sigma, lambda);
-  const NeighborIndex index(centres);
-  return assemble(centres, sigma, lambda, index, {});
+  return assembleAny(centres, sigma, lambda, {}, nullptr, detail::CellGrid::kDefaultMaxCells);
 }
 
 namespace detail {
 
 CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda, const NonZeroCheck& beforeAllocating,
-                           Interrupter* interrupter) {
-  checkAssemblyArguments(centres, sigma, lambda);
-  const NeighborIndex index(centres);
-  return assemble(centres, sigma, lambda, index, {}, beforeAllocating, interrupter);
-}
-
-CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda, const NeighborIndex& superset,
-                           const std::vector<Index>& rowOf, const NonZeroCheck& beforeAllocating,
-                           Interrupter* interrupter) {
-  checkAssemblyArguments(centres, sigma, lambda);
-  if (rowOf.size() != superset.size()) {
-    throw InvalidArgument("assembleWendland: the row map has " + std::to_string(rowOf.size()) +
-                          " entries for an index of " + std::to_string(superset.size()) + " points");
-  }
-  return assemble(centres, sigma, lambda, superset, rowOf, beforeAllocating, interrupter);
+                           Interrupter* interrupter, std::size_t maxGridCells) {
+  return assembleAny(centres, sigma, lambda, beforeAllocating, interrupter, maxGridCells);
 }
 
 }  // namespace detail

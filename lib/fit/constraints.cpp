@@ -5,14 +5,22 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <exception>
+#include <utility>
 #include <limits>
 #include <sstream>
 #include <string>
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/neighbors.hpp"
+#include "spatial/cell_grid.hpp"
 #include "spatial/morton.hpp"
 #include "spatial/point_bvh.hpp"
+#include "spatial/search_stop.hpp"
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 namespace duplexfit::detail {
 
@@ -174,6 +182,66 @@ Companions validCompanions(const Points& points, const Points& normals, NearestO
   return out;
 }
 
+/// keep[i] = 0 for each candidate within options.mergeDistance of an earlier kept one (rows of `all` in
+/// priority order). The pairs come from a grid of cells of max(σ_k, mergeDistance) (spatial/cell_grid.hpp;
+/// a k-d tree where its table would be too large), in parallel; the decisions then go in row order.
+void mergeNearDuplicates(const Points& all, const ConstraintOptions& options, std::vector<char>& keep) {
+  const double r = options.mergeDistance;
+  const Eigen::Index total = all.rows();
+  // Each candidate's earlier neighbours within r (few have any): (later, earlier) pairs.
+  std::vector<std::pair<Index, Index>> pairs;
+  const CellGrid grid(all, std::max(options.sigma, r));
+  if (grid.usable()) {
+    SearchStop stop(options.interrupter);
+    constexpr Eigen::Index kBlock = 4096;
+    const Eigen::Index blocks = (total + kBlock - 1) / kBlock;
+    std::exception_ptr error;
+#pragma omp parallel
+    {
+#ifdef _OPENMP
+      const int thread = omp_get_thread_num();
+#else
+      const int thread = 0;
+#endif
+      std::vector<std::pair<Index, Index>> mine;
+#pragma omp for schedule(dynamic, 1) nowait
+      for (Eigen::Index b = 0; b < blocks; ++b) {
+        if (stop.skip(thread)) continue;
+        try {
+          for (Eigen::Index i = b * kBlock; i < std::min(total, (b + 1) * kBlock); ++i) {
+            const double q[3] = {all(i, 0), all(i, 1), all(i, 2)};
+            grid.within(q, r, [&mine, i](Index j, double) {
+              if (j < i) mine.emplace_back(static_cast<Index>(i), j);
+            });
+          }
+        } catch (...) {
+#pragma omp critical(duplexfit_merge_error)
+          if (!error) error = std::current_exception();
+        }
+      }
+#pragma omp critical(duplexfit_merge_pairs)
+      pairs.insert(pairs.end(), mine.begin(), mine.end());
+    }
+    if (error) std::rethrow_exception(error);
+    stop.throwIfStopped();
+  } else {
+    // Only whether an earlier kept centre is near matters, not the hits' order.
+    const NeighborIndex index(all);
+    const NeighborLists close = index.radiusSearchUnsorted(all, r, options.interrupter);
+    for (Eigen::Index i = 0; i < total; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      for (auto e = close.offsets[ui]; e < close.offsets[ui + 1]; ++e) {
+        const Index j = close.indices[static_cast<std::size_t>(e)];
+        if (j < i) pairs.emplace_back(static_cast<Index>(i), j);
+      }
+    }
+  }
+  std::sort(pairs.begin(), pairs.end());
+  for (const auto& [i, j] : pairs) {
+    if (keep[static_cast<std::size_t>(j)] != 0) keep[static_cast<std::size_t>(i)] = 0;
+  }
+}
+
 }  // namespace
 
 std::vector<double> worldOffsets(const std::vector<double>& offsets, bool relative, double side) {
@@ -277,21 +345,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
     row += blocks[b].rows();
   }
   std::vector<char> keep(static_cast<std::size_t>(total), 1);
-  if (options.mergeDistance > 0.0 && total > 0) {
-    out.candidateIndex = std::make_unique<NeighborIndex>(all);
-    // Only whether an earlier kept centre is near matters, not the hits' order.
-    const NeighborLists close = out.candidateIndex->radiusSearchUnsorted(all, options.mergeDistance, options.interrupter);
-    for (Eigen::Index i = 0; i < total; ++i) {
-      const auto ui = static_cast<std::size_t>(i);
-      for (auto e = close.offsets[ui]; e < close.offsets[ui + 1]; ++e) {
-        const Index j = close.indices[static_cast<std::size_t>(e)];
-        if (j < i && keep[static_cast<std::size_t>(j)] != 0) {
-          keep[ui] = 0;
-          break;
-        }
-      }
-    }
-  }
+  if (options.mergeDistance > 0.0 && total > 0) mergeNearDuplicates(all, options, keep);
   Eigen::Index kept = 0;
   for (char k : keep) kept += k;
   {
@@ -317,11 +371,9 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
     }
     std::sort(order.begin(), order.end());
   }
-  if (out.candidateIndex) out.candidateRow.assign(static_cast<std::size_t>(total), -1);
   Eigen::Index r = 0;
   for (const auto& entry : order) {
     const Eigen::Index i = entry.second;
-    if (out.candidateIndex) out.candidateRow[static_cast<std::size_t>(i)] = static_cast<Index>(r);
     out.centres.row(r) = all.row(i);
     out.targets[r] = targets[i];
     out.sources[static_cast<std::size_t>(r)] = sourceOf[static_cast<std::size_t>(i)];

@@ -3,7 +3,6 @@
 // medial surface with their true distance as target.
 #pragma once
 
-#include <memory>
 #include <vector>
 
 #include <Eigen/Core>
@@ -20,6 +19,7 @@ struct ConstraintOptions {
   int offSurfaceSide = -1;
   double validityTolerance = 1e-2;  ///< η
   double mergeDistance = 0.0;       ///< FitOptions::mergeDistance (1e-2) × σ_k
+  double sigma = 0.0;               ///< σ_k: the cell of the merge's grid (at least mergeDistance)
   bool dropZeroNormalPoints = false;
   /// Also reject a companion q on the wrong side of its nearest other point's tangent plane (FitOptions::sideTest).
   bool tangentSideTest = false;
@@ -49,12 +49,6 @@ struct LevelConstraints {
   /// indices of surface points that were merged away or dropped (for E_0).
   std::vector<std::pair<Eigen::Index, Eigen::Index>> surfaceCentres;
   std::vector<Eigen::Index> surfaceNotCentres;
-  /// The index the merge searched: every candidate before the merge (a superset of `centres`), with
-  /// candidateRow[i] the centre row of candidate i or −1 when it was merged away; null when nothing
-  /// was merged (mergeDistance 0). The level's assembly searches it instead of a new index
-  /// (detail::assembleWendland with a superset).
-  std::unique_ptr<NeighborIndex> candidateIndex;
-  std::vector<Index> candidateRow;
 };
 
 /// The offsets in input units (fractions of `side` when `relative`), each checked: non-zero and smaller

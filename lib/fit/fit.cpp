@@ -86,6 +86,7 @@ detail::ConstraintOptions detail::levelConstraintOptions(const FitOptions& optio
   co.offSurfaceSide = offSurfaceSide;
   co.validityTolerance = options.validityTolerance;
   co.mergeDistance = options.mergeDistance * sigma;
+  co.sigma = sigma;
   co.dropZeroNormalPoints = options.dropZeroNormalPoints;
   co.tangentSideTest = options.sideTest;
   co.medial = options.medialConstraints;
@@ -322,10 +323,8 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
 
   // Assembles Φ + λI for `centres`, solves it by PCG on the device from b, fills the level report (non-zeros,
   // solve statistics, times) and leaves the weights in lr.weights; returns the matrix.
-  // With `superset` (the constraints' merge index, when it holds every centre) the assembly searches it
-  // instead of building another k-d tree; the matrix is the same.
   auto solveLevel = [&](const Points& centres, double sigma, double lambda, const Eigen::VectorXd& b, int k,
-                        LevelWork& lr, const detail::LevelConstraints* superset) {
+                        LevelWork& lr) {
     auto t0 = Clock::now();
     report(interrupter, {FitStage::Assembly, k, levels, 0, 0.0, std::to_string(centres.rows()) + " centres"}, &work);
     const detail::NonZeroCheck budget = [&](std::size_t nonZeros) {
@@ -336,9 +335,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
       requireMemory(options.limits, "fit", estimateLevelBytes(static_cast<std::size_t>(centres.rows()), nonZeros, options),
                     what.str(), "fit a sparser cloud (or fewer --sample-points of a mesh input), or fewer offsets");
     };
-    CsrMatrix a = superset != nullptr ? detail::assembleWendland(centres, sigma, lambda, *superset->candidateIndex,
-                                                                 superset->candidateRow, budget, interrupter)
-                                      : detail::assembleWendland(centres, sigma, lambda, budget, interrupter);
+    CsrMatrix a = detail::assembleWendland(centres, sigma, lambda, budget, interrupter);
     lr.nonZeros = a.nonZeros();
     lr.secondsAssembly = secondsSince(t0);
 
@@ -374,7 +371,6 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     detail::LevelPoints level = k < levels ? detail::cellCentroids(u, nu, box, k) : detail::LevelPoints{u, nu};
     const detail::ConstraintOptions co = detail::levelConstraintOptions(options, deltas, sigma, offSide, interrupter);
     detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals, co);
-    const Eigen::Index mergedCentres = c.centres.rows();  // before any anchors
     lr.offsetMedial = c.offsetMedial;
     lr.offSurfaceMedial = c.offSurfaceMedial;
     if (k <= lastAnchorLevel) {
@@ -404,9 +400,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
       break;
     }
 
-    // Anchors were appended after the merge: the merge index does not hold them.
-    const bool reuseIndex = c.candidateIndex && c.centres.rows() == mergedCentres;
-    const CsrMatrix a = solveLevel(c.centres, sigma, options.smoothing * k, b, k, lr, reuseIndex ? &c : nullptr);
+    const CsrMatrix a = solveLevel(c.centres, sigma, options.smoothing * k, b, k, lr);
 
     fitted.push_back(FieldLevel{sigma, c.centres, std::move(lr.weights)});
     evaluator->appendLevel(fitted.back());
@@ -530,7 +524,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
         lw.level = levels + 1;
         lw.sigma = sigmaC / norm.scale;
         lw.centres = cr.points;
-        const CsrMatrix a = solveLevel(centres, sigmaC, 0.0, b, levels + 1, lw, nullptr);
+        const CsrMatrix a = solveLevel(centres, sigmaC, 0.0, b, levels + 1, lw);
         cr.solve = lw.solve;
         cr.nonZeros = lw.nonZeros;
         fitted.push_back(FieldLevel{sigmaC, std::move(centres), std::move(lw.weights)});

@@ -493,7 +493,6 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
 
       detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals,
                                                             detail::levelConstraintOptions(options, deltas, sigma, offSide, interrupter));
-      const Eigen::Index mergedCentres = c.centres.rows();
       // The unit's system: its owned centres (those of its level points) and, in local mode, every centre
       // within g·σ_k of an owned one, by position: an offset centre lies |δ| from its source, so on a thin
       // part it neighbours centres whose sources are across the part (the data radius, (g+1)σ_k + 2 max|δ|,
@@ -545,7 +544,6 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
             }
             rows = std::move(kept);
           }
-          c.candidateIndex.reset();
         }
       }
       const Eigen::Index systemCentres = c.centres.rows();
@@ -606,9 +604,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
           requireMemory(options.limits, "fit", estimateLevelBytes(static_cast<std::size_t>(c.centres.rows()), z, options),
                         what.str(), gathered ? "raise --coarse-points less, or fit a sparser cloud" : "use more --blocks");
         };
-        const bool reuseIndex = c.candidateIndex && c.centres.rows() == mergedCentres;
-        const CsrMatrix a = reuseIndex ? detail::assembleWendland(c.centres, sigma, lambda, *c.candidateIndex, c.candidateRow, budget, interrupter)
-                                       : detail::assembleWendland(c.centres, sigma, lambda, budget, interrupter);
+        const CsrMatrix a = detail::assembleWendland(c.centres, sigma, lambda, budget, interrupter);
         nonZeros = a.nonZeros();
         lr.secondsAssembly += secondsSince(tu);
         tu = Clock::now();

@@ -96,34 +96,33 @@ TEST_SUITE("field") {
     CHECK(duplexfit::wendlandSecondDerivative(1.0) == 0.0);
   }
 
-  TEST_CASE("wendland: assembly over an index of a superset of the centres gives the same matrix") {
-    // The fit assembles each level over the index its merge searched: the candidates before the merge, in
-    // another order than the centres. Extra points, a permutation and a far-away extra must not matter.
-    const Points all = duplexfit::testing::fibonacciSphere(3000, 0.5);
-    std::vector<duplexfit::Index> rowOf(static_cast<std::size_t>(all.rows()), -1);
-    std::vector<Eigen::Index> picked;
-    for (Eigen::Index i = 0; i < all.rows(); ++i) {
-      if (i % 3 != 1) picked.push_back(i);
+  TEST_CASE("wendland: the assembly on the cell grid and on the k-d tree give the same matrix") {
+    // A sphere's level centres plus duplicates, points on cell boundaries (multiples of sigma) and a
+    // far-away one: the grid (cells of sigma) and the tree must find the same neighbours at the same
+    // distances, so the matrices agree bit for bit.
+    const double sigma = 0.12;
+    Points centres = duplexfit::testing::fibonacciSphere(3000, 0.5);
+    const Eigen::Index base = centres.rows();
+    centres.conservativeResize(base + 40, 3);
+    for (Eigen::Index i = 0; i < 20; ++i) centres.row(base + i) = centres.row(7 * i);  // duplicates
+    for (Eigen::Index i = 20; i < 39; ++i) {
+      centres.row(base + i) << sigma * static_cast<double>(i % 5 - 2), sigma * static_cast<double>(i % 3 - 1), 0.5 - sigma;
     }
-    std::reverse(picked.begin(), picked.end());  // centre rows in another order than the indexed points
-    Points centres(static_cast<Eigen::Index>(picked.size()), 3);
-    for (std::size_t r = 0; r < picked.size(); ++r) {
-      centres.row(static_cast<Eigen::Index>(r)) = all.row(picked[r]);
-      rowOf[static_cast<std::size_t>(picked[r])] = static_cast<duplexfit::Index>(r);
-    }
-    const duplexfit::NeighborIndex superset(all);
+    centres.row(base + 39) << 40.0, -3.0, 2.0;
     for (const double lambda : {0.0, 0.3}) {
-      const duplexfit::CsrMatrix expected = duplexfit::assembleWendland(centres, 0.12, lambda);
-      const duplexfit::CsrMatrix got = duplexfit::detail::assembleWendland(centres, 0.12, lambda, superset, rowOf);
-      CHECK(expected.nonZeros() > 20 * centres.rows());
-      CHECK(got.rows == expected.rows);
-      CHECK(got.rowPtr == expected.rowPtr);
-      CHECK(got.colIdx == expected.colIdx);
-      CHECK(got.values == expected.values);
+      const duplexfit::CsrMatrix tree = duplexfit::detail::assembleWendland(centres, sigma, lambda, {}, nullptr, 0);
+      const duplexfit::CsrMatrix grid = duplexfit::detail::assembleWendland(centres, sigma, lambda, {}, nullptr);
+      const duplexfit::CsrMatrix pub = duplexfit::assembleWendland(centres, sigma, lambda);
+      CHECK(tree.nonZeros() > 20 * centres.rows());
+      CHECK(grid.rows == tree.rows);
+      CHECK(grid.rowPtr == tree.rowPtr);
+      CHECK(grid.colIdx == tree.colIdx);
+      CHECK(grid.values == tree.values);
+      CHECK(pub.values == grid.values);
     }
-    rowOf.pop_back();
-    CHECK_THROWS_AS(duplexfit::detail::assembleWendland(centres, 0.12, 0.0, superset, rowOf),
-                    duplexfit::InvalidArgument);
+    // The far-away centre is alone in its row; the table then spans it (some 200k cells, usable).
+    CHECK(duplexfit::detail::CellGrid(centres, sigma).usable());
+    CHECK_FALSE(duplexfit::detail::CellGrid(centres, sigma, 1000).usable());
   }
 
   TEST_CASE("wendland: assembly equals a dense brute-force build on sphere level centres") {
