@@ -24,9 +24,32 @@ void CsrMatrix::validate() const {
     fail("rowPtr[rows] = " + std::to_string(rowPtr[static_cast<std::size_t>(rows)]) +
          " does not equal the number of values " + std::to_string(values.size()));
   }
+  // The row pointers first: non-decreasing from 0 to the number of values, so no entry is read out of range.
   for (Index i = 0; i < rows; ++i) {
+    if (rowPtr[static_cast<std::size_t>(i) + 1] < rowPtr[static_cast<std::size_t>(i)]) {
+      fail("rowPtr decreases at row " + std::to_string(i));
+    }
+  }
+  // Then the rows' entries, in parallel for the first row that fails (a level system has tens of millions
+  // of entries); the loop below starts there, so the message is the one a serial scan gives.
+  const auto rowFails = [this](Index i) {
     const Index b = rowPtr[static_cast<std::size_t>(i)], e = rowPtr[static_cast<std::size_t>(i) + 1];
-    if (e < b) fail("rowPtr decreases at row " + std::to_string(i));
+    for (Index k = b; k < e; ++k) {
+      const Index c = colIdx[static_cast<std::size_t>(k)];
+      if (c < 0 || c >= cols || (k > b && c <= colIdx[static_cast<std::size_t>(k) - 1]) ||
+          !std::isfinite(values[static_cast<std::size_t>(k)])) {
+        return true;
+      }
+    }
+    return false;
+  };
+  Index first = rows;
+#pragma omp parallel for schedule(static) reduction(min : first)
+  for (Index i = 0; i < rows; ++i) {
+    if (i < first && rowFails(i)) first = i;
+  }
+  for (Index i = first; i < rows; ++i) {
+    const Index b = rowPtr[static_cast<std::size_t>(i)], e = rowPtr[static_cast<std::size_t>(i) + 1];
     for (Index k = b; k < e; ++k) {
       const Index c = colIdx[static_cast<std::size_t>(k)];
       if (c < 0 || c >= cols) {

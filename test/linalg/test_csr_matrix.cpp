@@ -1,6 +1,7 @@
 // CsrMatrix validation, reference SpMV and Eigen conversions.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -53,6 +54,32 @@ TEST_SUITE("linalg") {
     ptr.rowPtr[3] = 4;
     CHECK(!validationMessage(ptr).empty());
     CHECK_NOTHROW(CsrMatrix{}.validate());
+    // A row pointer past the values before a decrease: reported without reading beyond them (ASan).
+    CsrMatrix jump = small();
+    jump.rowPtr = {0, 9, 2, 5};
+    CHECK(validationMessage(jump).find("rowPtr decreases at row 1") != std::string::npos);
+  }
+
+  TEST_CASE("csr: validate names the first bad row of a large matrix (rows checked in parallel)") {
+    const Index n = 200000;
+    CsrMatrix a;
+    a.rows = a.cols = n;
+    a.rowPtr.resize(static_cast<std::size_t>(n) + 1);
+    for (Index i = 0; i < n; ++i) {
+      a.rowPtr[static_cast<std::size_t>(i)] = static_cast<Index>(a.colIdx.size());
+      for (Index j = std::max<Index>(0, i - 1); j <= std::min<Index>(n - 1, i + 1); ++j) {
+        a.colIdx.push_back(j);
+        a.values.push_back(j == i ? 4.0 : -1.0);
+      }
+    }
+    a.rowPtr.back() = static_cast<Index>(a.colIdx.size());
+    CHECK_NOTHROW(a.validate());
+    CsrMatrix bad = a;
+    bad.values[static_cast<std::size_t>(bad.rowPtr[190000])] = std::numeric_limits<double>::quiet_NaN();
+    bad.colIdx[static_cast<std::size_t>(bad.rowPtr[150001]) + 1] = n;  // out of range, the earlier defect
+    CHECK(validationMessage(bad).find("row 150001 has column index") != std::string::npos);
+    bad.colIdx[static_cast<std::size_t>(bad.rowPtr[3]) + 1] = 2;  // row 3's columns 2, 3, 4 become 2, 2, 4
+    CHECK(validationMessage(bad).find("row 3 has unsorted or repeated column 2") != std::string::npos);
   }
 
   TEST_CASE("csr: multiply, diagonal, symmetry and Eigen round trip") {
