@@ -62,6 +62,10 @@ class DeviceCsr {
   /// @throws InvalidArgument for malformed or non-finite matrices, DeviceError when a buffer exceeds the
   ///         device's max allocation or the precision is unavailable.
   static DeviceCsr upload(const Device& device, const CsrMatrix& a, Precision precision);
+  /// As upload, into the device buffers of `recycled` where they are on the same device and large enough
+  /// (a fresh buffer costs its pages again: a fit's finest level reuses the level before's); `recycled` is
+  /// left empty, and buffers of it that are not reused are released before any new one is created.
+  static DeviceCsr upload(const Device& device, const CsrMatrix& a, Precision precision, DeviceCsr&& recycled);
   DeviceCsr(DeviceCsr&&) noexcept;
   DeviceCsr& operator=(DeviceCsr&&) noexcept;
   ~DeviceCsr();

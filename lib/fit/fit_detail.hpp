@@ -124,8 +124,11 @@ std::string preconditionerName(const FitOptions& options);
 
 /// Solves a level's system A w = b on the device as every level of a fit is solved: A and b uploaded in
 /// options.precision, the preconditioner of options, PCG with levelSolverOptions. An empty b is a
-/// converged solve with no weights. `monitor` (if not null) gets the solver's events.
+/// converged solve with no weights. `monitor` (if not null) gets the solver's events. With `buffers`, A goes
+/// into the device buffers held there where they are large enough (DeviceCsr::upload), and the uploaded A
+/// is left there for the next level.
 SolveStats solveLevelSystem(const Device& device, const CsrMatrix& a, const Eigen::VectorXd& b, const FitOptions& options,
-                            bool finest, Eigen::VectorXd& weights, Interrupter* monitor = nullptr);
+                            bool finest, Eigen::VectorXd& weights, Interrupter* monitor = nullptr,
+                            DeviceCsr* buffers = nullptr);
 
 }  // namespace duplexfit::detail

@@ -168,6 +168,11 @@ DeviceCsr& DeviceCsr::operator=(DeviceCsr&&) noexcept = default;
 DeviceCsr::~DeviceCsr() = default;
 
 DeviceCsr DeviceCsr::upload(const Device& device, const CsrMatrix& a, Precision precision) {
+  return upload(device, a, precision, DeviceCsr{});
+}
+
+DeviceCsr DeviceCsr::upload(const Device& device, const CsrMatrix& a, Precision precision, DeviceCsr&& recycled) {
+  std::unique_ptr<detail::CsrStorage> old = std::move(recycled.storage_);
   a.validate();
   device.requirePrecision(precision);
   DeviceCsr m;
@@ -195,9 +200,25 @@ DeviceCsr DeviceCsr::upload(const Device& device, const CsrMatrix& a, Precision 
       return;
     }
     auto& queue = device.impl()->queue();
-    s.rowPtrBuf = detail::createBuffer(device, (s.rows + 1) * sizeof(Index), "the row pointers of " + what);
-    s.colBuf = detail::createBuffer(device, s.nnz * sizeof(Index), "the column indices of " + what);
-    s.valBuf = detail::createBuffer(device, valueBytes, "the values of " + what);
+    // A buffer of the recycled matrix serves when it is on this device and holds `bytes`; the others are
+    // released first, so that old and new buffers are not held at once.
+    const bool sameDevice = old && old->device.impl() == device.impl() && !old->device.isReference();
+    const auto reuse = [&](cl::Buffer& from, std::size_t bytes) {
+      cl::Buffer b;
+      if (sameDevice && bytes > 0 && from() != nullptr && from.getInfo<CL_MEM_SIZE>() >= bytes) b = from;
+      from = cl::Buffer();
+      return b;
+    };
+    cl::Buffer rowPtrOld, colOld, valOld;
+    if (old) {
+      rowPtrOld = reuse(old->rowPtrBuf, (s.rows + 1) * sizeof(Index));
+      colOld = reuse(old->colBuf, s.nnz * sizeof(Index));
+      valOld = reuse(old->valBuf, valueBytes);
+      old.reset();
+    }
+    s.rowPtrBuf = rowPtrOld() != nullptr ? rowPtrOld : detail::createBuffer(device, (s.rows + 1) * sizeof(Index), "the row pointers of " + what);
+    s.colBuf = colOld() != nullptr ? colOld : detail::createBuffer(device, s.nnz * sizeof(Index), "the column indices of " + what);
+    s.valBuf = valOld() != nullptr ? valOld : detail::createBuffer(device, valueBytes, "the values of " + what);
     if (s.rows > 0) {
       DUPLEXFIT_CL_CHECK(queue.enqueueWriteBuffer(s.rowPtrBuf, CL_TRUE, 0, (s.rows + 1) * sizeof(Index),
                                                   a.rowPtr.data()));

@@ -105,6 +105,37 @@ TEST_SUITE("linalg") {
     }
   }
 
+  TEST_CASE("spmv: an upload into a recycled matrix's buffers gives the same products as a fresh one") {
+    // A fit's levels: a large matrix, then a smaller one into its buffers, then a larger one (the buffers
+    // too small: released, new ones made), then one whose recycled matrix is on another device.
+    std::vector<Device> devices{Device::reference()};
+    if (const Device* d = testing::openclTestDevice()) devices.push_back(*d);
+    for (const Device& d : devices) {
+      CAPTURE(d.info().spec);
+      DeviceCsr held;
+      for (const int n : {3000, 1200, 5000}) {
+        const CsrMatrix a = testing::randomSpdMatrix(n, 20, static_cast<std::uint32_t>(n));
+        const Eigen::VectorXd x = randomVector(n, 5u);
+        DeviceCsr m = DeviceCsr::upload(d, a, Precision::Float, std::move(held));
+        CHECK(held.nonZeros() == 0);
+        CHECK(m.nonZeros() == a.nonZeros());
+        const DeviceCsr fresh = DeviceCsr::upload(d, a, Precision::Float);
+        const DeviceVector dx = DeviceVector::upload(d, x, Precision::Float);
+        DeviceVector y(d, static_cast<std::size_t>(n), Precision::Float), yFresh(d, static_cast<std::size_t>(n), Precision::Float);
+        y.fill(std::numeric_limits<double>::quiet_NaN());
+        spmv(m, dx, y);
+        spmv(fresh, dx, yFresh);
+        CHECK(y.download() == yFresh.download());
+        checkSpmvResult(a, x, y.download(), 5e-6);
+        held = std::move(m);
+      }
+      const CsrMatrix small = testing::randomSpdMatrix(100, 5, 2u);
+      const DeviceCsr other = DeviceCsr::upload(Device::reference(), small, Precision::Float, std::move(held));
+      CHECK(other.nonZeros() == small.nonZeros());
+      CHECK(other.device().isReference());
+    }
+  }
+
   TEST_CASE("spmv: non-finite matrices are rejected at upload, naming the element") {
     CsrMatrix a = testing::randomSpdMatrix(50, 5, 1u);
     a.values[17] = std::numeric_limits<double>::infinity();
