@@ -7,9 +7,9 @@
 #include "duplexfit/wendland.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
-#include <atomic>
 #include <exception>
 #include <limits>
 #include <new>
@@ -68,19 +68,24 @@ void checkCentres(const Points& centres) {
   }
 }
 
-/// Non-zeros expected for the whole matrix from a sample of evenly spaced rows, with a margin, so
-/// the CSR arrays can be reserved once (unused capacity stays virtual memory, never touched).
-std::size_t estimateNonZeros(const NeighborIndex& index, const Points& centres, double sigma) {
-  const Index n = static_cast<Index>(centres.rows());
+/// Reserves the CSR arrays once for the non-zeros expected from a sample of evenly spaced rows (with a
+/// margin; unused capacity stays virtual memory, never touched), after the caller's check.
+/// hitsOfRow(r): the neighbours of centre row r.
+template <typename HitsOfRow>
+void reserveNonZeros(CsrMatrix& a, const detail::NonZeroCheck& beforeAllocating, HitsOfRow&& hitsOfRow) {
+  const Index n = a.rows;
   const Index s = std::min(n, kSampleRows);
-  Points sample(s, 3);
-  for (Index i = 0; i < s; ++i) {
-    sample.row(i) = centres.row(static_cast<Index>((std::int64_t{i} * n) / s));
+  std::int64_t hits = 0;
+  for (Index i = 0; i < s; ++i) hits += hitsOfRow(static_cast<Index>((std::int64_t{i} * n) / s));
+  const double estimate = 1.15 * static_cast<double>(hits) / static_cast<double>(s) * static_cast<double>(n) + 4096.0;
+  const auto reserve = static_cast<std::size_t>(std::min(estimate, static_cast<double>(kMaxNonZeros)));
+  if (beforeAllocating) beforeAllocating(reserve);
+  try {
+    a.colIdx.reserve(reserve);
+    a.values.reserve(reserve);
+  } catch (const std::bad_alloc&) {
+    // The estimate's margin may not fit where the matrix itself does: grow as needed instead.
   }
-  const NeighborLists lists = index.radiusSearch(sample, sigma);
-  const double mean = static_cast<double>(lists.offsets.back()) / static_cast<double>(s);
-  const double estimate = 1.15 * mean * static_cast<double>(n) + 4096.0;
-  return static_cast<std::size_t>(std::min(estimate, static_cast<double>(kMaxNonZeros)));
 }
 
 }  // namespace
@@ -113,14 +118,10 @@ CsrMatrix assembleOnTree(const Points& centres, double sigma, double lambda, con
   a.rowPtr.assign(static_cast<std::size_t>(n) + 1, 0);
   if (n == 0) return a;
 
-  const std::size_t reserve = estimateNonZeros(index, centres, sigma);
-  if (beforeAllocating) beforeAllocating(reserve);
-  try {
-    a.colIdx.reserve(reserve);
-    a.values.reserve(reserve);
-  } catch (const std::bad_alloc&) {
-    // The estimate's margin may not fit where the matrix itself does: grow as needed instead.
-  }
+  reserveNonZeros(a, beforeAllocating, [&](Index r) {
+    const NeighborLists lists = index.radiusSearch(centres.middleRows(r, 1), sigma);
+    return lists.offsets.back();
+  });
   const double diagonal = 1.0 + lambda;
 
   Points block;
@@ -196,25 +197,13 @@ CsrMatrix assembleOnGrid(const Points& centres, double sigma, double lambda, con
   const auto query = [&centres](Index i, double* q) {
     for (int c = 0; c < 3; ++c) q[c] = centres(i, c);
   };
-  {
-    // Non-zeros expected from evenly spaced rows, as estimateNonZeros does it on the tree.
-    const Index s = std::min(n, kSampleRows);
+  reserveNonZeros(a, beforeAllocating, [&](Index r) {
+    double q[3];
+    query(r, q);
     std::int64_t hits = 0;
-    for (Index i = 0; i < s; ++i) {
-      double q[3];
-      query(static_cast<Index>((std::int64_t{i} * n) / s), q);
-      grid.within(q, sigma, [&hits](Index, double) { ++hits; });
-    }
-    const double estimate = 1.15 * static_cast<double>(hits) / static_cast<double>(s) * static_cast<double>(n) + 4096.0;
-    const auto reserve = static_cast<std::size_t>(std::min(estimate, static_cast<double>(kMaxNonZeros)));
-    if (beforeAllocating) beforeAllocating(reserve);
-    try {
-      a.colIdx.reserve(reserve);
-      a.values.reserve(reserve);
-    } catch (const std::bad_alloc&) {
-      // The estimate's margin may not fit where the matrix itself does: grow as needed instead.
-    }
-  }
+    grid.within(q, sigma, [&hits](Index, double) { ++hits; });
+    return hits;
+  });
   const double diagonal = 1.0 + lambda;
 #ifdef _OPENMP
   const auto threads = static_cast<std::size_t>(std::max(1, omp_get_max_threads()));

@@ -6,10 +6,11 @@
 #include <cmath>
 #include <cstdint>
 #include <exception>
-#include <utility>
 #include <limits>
+#include <memory>
 #include <sstream>
 #include <string>
+#include <utility>
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/neighbors.hpp"
