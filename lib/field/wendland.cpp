@@ -19,12 +19,10 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/neighbors.hpp"
 #include "field/wendland_detail.hpp"
+#include "parallel/omp_threads.hpp"
 #include "spatial/cell_grid.hpp"
 #include "spatial/search_stop.hpp"
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 namespace duplexfit {
 
@@ -66,6 +64,15 @@ void checkCentres(const Points& centres) {
                             " has a non-finite coordinate");
     }
   }
+}
+
+/// An n × n matrix with no entries yet (row pointers all 0).
+CsrMatrix noEntries(Index n) {
+  CsrMatrix a;
+  a.rows = n;
+  a.cols = n;
+  a.rowPtr.assign(static_cast<std::size_t>(n) + 1, 0);
+  return a;
 }
 
 /// Reserves the CSR arrays once for the non-zeros expected from a sample of evenly spaced rows (with a
@@ -112,10 +119,7 @@ void checkAssemblyArguments(const Points& centres, double sigma, double lambda) 
 CsrMatrix assembleOnTree(const Points& centres, double sigma, double lambda, const NeighborIndex& index,
                          const detail::NonZeroCheck& beforeAllocating, Interrupter* interrupter) {
   const auto n = static_cast<Index>(centres.rows());
-  CsrMatrix a;
-  a.rows = n;
-  a.cols = n;
-  a.rowPtr.assign(static_cast<std::size_t>(n) + 1, 0);
+  CsrMatrix a = noEntries(n);
   if (n == 0) return a;
 
   reserveNonZeros(a, beforeAllocating, [&](Index r) {
@@ -188,10 +192,7 @@ CsrMatrix assembleOnTree(const Points& centres, double sigma, double lambda, con
 CsrMatrix assembleOnGrid(const Points& centres, double sigma, double lambda, const detail::CellGrid& grid,
                          const detail::NonZeroCheck& beforeAllocating, Interrupter* interrupter) {
   const auto n = static_cast<Index>(centres.rows());
-  CsrMatrix a;
-  a.rows = n;
-  a.cols = n;
-  a.rowPtr.assign(static_cast<std::size_t>(n) + 1, 0);
+  CsrMatrix a = noEntries(n);
   if (n == 0) return a;
   detail::SearchStop stop(interrupter);
   const auto query = [&centres](Index i, double* q) {
@@ -205,11 +206,7 @@ CsrMatrix assembleOnGrid(const Points& centres, double sigma, double lambda, con
     return hits;
   });
   const double diagonal = 1.0 + lambda;
-#ifdef _OPENMP
-  const auto threads = static_cast<std::size_t>(std::max(1, omp_get_max_threads()));
-#else
-  const std::size_t threads = 1;
-#endif
+  const auto threads = static_cast<std::size_t>(std::max(1, detail::maxThreads()));
   std::vector<std::vector<Entry>> buffers(threads);
   std::vector<std::int64_t> rowStart;
   for (Index start = 0; start < n; start += std::min(kChunkRows, n - start)) {
@@ -225,11 +222,7 @@ CsrMatrix assembleOnGrid(const Points& centres, double sigma, double lambda, con
     };
 #pragma omp parallel num_threads(static_cast<int>(threads))
     {
-#ifdef _OPENMP
-      const auto t = static_cast<std::size_t>(omp_get_thread_num()), nt = static_cast<std::size_t>(omp_get_num_threads());
-#else
-      const std::size_t t = 0, nt = 1;
-#endif
+      const auto t = static_cast<std::size_t>(detail::threadId()), nt = static_cast<std::size_t>(detail::teamSize());
       const auto first = static_cast<Index>(static_cast<std::int64_t>(len) * static_cast<std::int64_t>(t) / static_cast<std::int64_t>(nt));
       const auto last = static_cast<Index>(static_cast<std::int64_t>(len) * static_cast<std::int64_t>(t + 1) / static_cast<std::int64_t>(nt));
       std::vector<Entry>& buffer = buffers[t];

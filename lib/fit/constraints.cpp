@@ -14,14 +14,12 @@
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/neighbors.hpp"
+#include "parallel/omp_threads.hpp"
 #include "spatial/cell_grid.hpp"
 #include "spatial/morton.hpp"
 #include "spatial/point_bvh.hpp"
 #include "spatial/search_stop.hpp"
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 namespace duplexfit::detail {
 
@@ -199,11 +197,7 @@ void mergeNearDuplicates(const Points& all, const ConstraintOptions& options, st
     std::exception_ptr error;
 #pragma omp parallel
     {
-#ifdef _OPENMP
-      const int thread = omp_get_thread_num();
-#else
-      const int thread = 0;
-#endif
+      const int thread = threadId();
       std::vector<std::pair<Index, Index>> mine;
 #pragma omp for schedule(dynamic, 1) nowait
       for (Eigen::Index b = 0; b < blocks; ++b) {

@@ -22,12 +22,10 @@
 #pragma GCC diagnostic pop
 
 #include "duplexfit/error.hpp"
+#include "parallel/omp_threads.hpp"
 #include "spatial/morton.hpp"
 #include "spatial/search_stop.hpp"
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 namespace duplexfit {
 
@@ -142,29 +140,9 @@ class KnnCollector final : public flann::ResultSet<double> {
   double bound_;
 };
 
-int maxThreads() noexcept {
-#ifdef _OPENMP
-  return omp_get_max_threads();
-#else
-  return 1;
-#endif
-}
-
-int teamSize() noexcept {
-#ifdef _OPENMP
-  return omp_get_num_threads();
-#else
-  return 1;
-#endif
-}
-
-int threadId() noexcept {
-#ifdef _OPENMP
-  return omp_get_thread_num();
-#else
-  return 0;
-#endif
-}
+using detail::maxThreads;
+using detail::teamSize;
+using detail::threadId;
 
 /// Sorts one query's hits by (distance, index). Lists are short (tens of entries), where an
 /// insertion sort beats std::sort by ~40% (fewer mispredicted branches); long lists use std::sort.

@@ -13,12 +13,10 @@
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/neighbors.hpp"
+#include "parallel/omp_threads.hpp"
 #include "spatial/morton.hpp"
 #include "spatial/search_stop.hpp"
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 namespace duplexfit::detail {
 
@@ -130,11 +128,7 @@ void PointBvh::nearestOther(const Points& queries, const std::vector<Eigen::Inde
 
 #pragma omp parallel
   {
-#ifdef _OPENMP
-    const int thread = omp_get_thread_num();
-#else
-    const int thread = 0;
-#endif
+    const int thread = threadId();
     std::vector<std::int32_t> stack;
     stack.reserve(128);
 #pragma omp for schedule(dynamic, 1)
