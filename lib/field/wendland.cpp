@@ -14,6 +14,7 @@
 #include <limits>
 #include <new>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "duplexfit/error.hpp"
@@ -66,9 +67,18 @@ void checkCentres(const Points& centres) {
   }
 }
 
-/// An n × n matrix with no entries yet (row pointers all 0).
-CsrMatrix noEntries(Index n) {
+/// An n × n matrix with no entries yet (row pointers all 0), in the arrays of `storage` (when not null:
+/// their capacity is taken over and `storage` is left empty).
+CsrMatrix noEntries(Index n, CsrMatrix* storage) {
   CsrMatrix a;
+  if (storage != nullptr) {
+    a.rowPtr = std::move(storage->rowPtr);
+    a.colIdx = std::move(storage->colIdx);
+    a.values = std::move(storage->values);
+    *storage = CsrMatrix{};
+    a.colIdx.clear();
+    a.values.clear();
+  }
   a.rows = n;
   a.cols = n;
   a.rowPtr.assign(static_cast<std::size_t>(n) + 1, 0);
@@ -117,9 +127,9 @@ void checkAssemblyArguments(const Points& centres, double sigma, double lambda) 
 
 /// The assembly with the radius searches on a k-d tree of the centres (where the grid is not usable).
 CsrMatrix assembleOnTree(const Points& centres, double sigma, double lambda, const NeighborIndex& index,
-                         const detail::NonZeroCheck& beforeAllocating, Interrupter* interrupter) {
+                         const detail::NonZeroCheck& beforeAllocating, Interrupter* interrupter, CsrMatrix* storage) {
   const auto n = static_cast<Index>(centres.rows());
-  CsrMatrix a = noEntries(n);
+  CsrMatrix a = noEntries(n, storage);
   if (n == 0) return a;
 
   reserveNonZeros(a, beforeAllocating, [&](Index r) {
@@ -190,9 +200,9 @@ CsrMatrix assembleOnTree(const Points& centres, double sigma, double lambda, con
 /// takes a contiguous run of rows, collects each row's entries (sorted by column) in its own buffer and
 /// counts them; after the prefix sum of the counts it copies its buffer into place.
 CsrMatrix assembleOnGrid(const Points& centres, double sigma, double lambda, const detail::CellGrid& grid,
-                         const detail::NonZeroCheck& beforeAllocating, Interrupter* interrupter) {
+                         const detail::NonZeroCheck& beforeAllocating, Interrupter* interrupter, CsrMatrix* storage) {
   const auto n = static_cast<Index>(centres.rows());
-  CsrMatrix a = noEntries(n);
+  CsrMatrix a = noEntries(n, storage);
   if (n == 0) return a;
   detail::SearchStop stop(interrupter);
   const auto query = [&centres](Index i, double* q) {
@@ -284,25 +294,25 @@ CsrMatrix assembleOnGrid(const Points& centres, double sigma, double lambda, con
 
 /// The assembly on the grid when its table fits `maxGridCells`, else on a k-d tree.
 CsrMatrix assembleAny(const Points& centres, double sigma, double lambda, const detail::NonZeroCheck& beforeAllocating,
-                      Interrupter* interrupter, std::size_t maxGridCells) {
+                      Interrupter* interrupter, std::size_t maxGridCells, CsrMatrix* storage) {
   checkAssemblyArguments(centres, sigma, lambda);
   const detail::CellGrid grid(centres, sigma, maxGridCells);
-  if (grid.usable()) return assembleOnGrid(centres, sigma, lambda, grid, beforeAllocating, interrupter);
+  if (grid.usable()) return assembleOnGrid(centres, sigma, lambda, grid, beforeAllocating, interrupter, storage);
   const NeighborIndex index(centres);
-  return assembleOnTree(centres, sigma, lambda, index, beforeAllocating, interrupter);
+  return assembleOnTree(centres, sigma, lambda, index, beforeAllocating, interrupter, storage);
 }
 
 }  // namespace
 
 CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda) {
-  return assembleAny(centres, sigma, lambda, {}, nullptr, detail::CellGrid::kDefaultMaxCells);
+  return assembleAny(centres, sigma, lambda, {}, nullptr, detail::CellGrid::kDefaultMaxCells, nullptr);
 }
 
 namespace detail {
 
 CsrMatrix assembleWendland(const Points& centres, double sigma, double lambda, const NonZeroCheck& beforeAllocating,
-                           Interrupter* interrupter, std::size_t maxGridCells) {
-  return assembleAny(centres, sigma, lambda, beforeAllocating, interrupter, maxGridCells);
+                           Interrupter* interrupter, std::size_t maxGridCells, CsrMatrix* storage) {
+  return assembleAny(centres, sigma, lambda, beforeAllocating, interrupter, maxGridCells, storage);
 }
 
 }  // namespace detail

@@ -323,8 +323,10 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   anchorBox.min().array() -= 0.1 + maxOffset;
   anchorBox.max().array() += 0.1 + maxOffset;
 
-  // The device buffers of the last level's matrix, for the next level's (the finest level's matrix has about
-  // as many non-zeros as the one before: fandisk_550k 42.4M after 43.2M).
+  // The last level's matrix, on the host and on the device, whose arrays and buffers the next level's fills
+  // where they are large enough (the finest level's matrix has about as many non-zeros as the one before:
+  // fandisk_550k 42.4M after 43.2M), so that its pages are not paid for again.
+  CsrMatrix levelMatrix;
   DeviceCsr levelBuffers;
   // Assembles Φ + λI for `centres`, solves it by PCG on the device from b, fills the level report (non-zeros,
   // solve statistics, times) and leaves the weights in lr.weights; returns the matrix.
@@ -340,7 +342,8 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
       requireMemory(options.limits, "fit", estimateLevelBytes(static_cast<std::size_t>(centres.rows()), nonZeros, options),
                     what.str(), "fit a sparser cloud (or fewer --sample-points of a mesh input), or fewer offsets");
     };
-    CsrMatrix a = detail::assembleWendland(centres, sigma, lambda, budget, interrupter);
+    CsrMatrix a = detail::assembleWendland(centres, sigma, lambda, budget, interrupter,
+                                           detail::CellGrid::kDefaultMaxCells, &levelMatrix);
     lr.nonZeros = a.nonZeros();
     lr.secondsAssembly = secondsSince(t0);
 
@@ -405,7 +408,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
       break;
     }
 
-    const CsrMatrix a = solveLevel(c.centres, sigma, options.smoothing * k, b, k, lr);
+    CsrMatrix a = solveLevel(c.centres, sigma, options.smoothing * k, b, k, lr);
 
     fitted.push_back(FieldLevel{sigma, c.centres, std::move(lr.weights)});
     evaluator->appendLevel(fitted.back());
@@ -430,6 +433,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
         }
       }
     }
+    levelMatrix = std::move(a);
   }
 
   // Offset correction (docs/method.md, "Offset correction"): one extra level of small support fitted to

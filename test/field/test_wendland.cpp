@@ -120,6 +120,25 @@ TEST_SUITE("field") {
       CHECK(grid.values == tree.values);
       CHECK(pub.values == grid.values);
     }
+    // Into the arrays of an earlier matrix (a fit's previous level): the same matrix, on both paths,
+    // whether those arrays are larger (kept) or smaller (grown) than needed; the earlier one is left empty.
+    for (const std::size_t cells : {duplexfit::detail::CellGrid::kDefaultMaxCells, std::size_t{0}}) {
+      duplexfit::CsrMatrix held = duplexfit::assembleWendland(centres, 1.5 * sigma, 0.0);  // more non-zeros
+      const std::size_t capacity = held.colIdx.capacity();
+      const duplexfit::CsrMatrix expected = duplexfit::assembleWendland(centres, sigma, 0.3);
+      duplexfit::CsrMatrix got = duplexfit::detail::assembleWendland(centres, sigma, 0.3, {}, nullptr, cells, &held);
+      CHECK(held.nonZeros() == 0);
+      CHECK(held.rows == 0);
+      CHECK(held.rowPtr == duplexfit::CsrMatrix{}.rowPtr);
+      CHECK(got.colIdx.capacity() == capacity);  // the larger arrays were kept
+      CHECK(got.rowPtr == expected.rowPtr);
+      CHECK(got.colIdx == expected.colIdx);
+      CHECK(got.values == expected.values);
+      const duplexfit::CsrMatrix wider = duplexfit::assembleWendland(centres, 2.0 * sigma, 0.0);
+      const duplexfit::CsrMatrix grown = duplexfit::detail::assembleWendland(centres, 2.0 * sigma, 0.0, {}, nullptr, cells, &got);
+      CHECK(grown.colIdx == wider.colIdx);
+      CHECK(grown.values == wider.values);
+    }
     // The far-away centre is alone in its row; the table then spans it (some 200k cells, usable).
     CHECK(duplexfit::detail::CellGrid(centres, sigma).usable());
     CHECK_FALSE(duplexfit::detail::CellGrid(centres, sigma, 1000).usable());
