@@ -96,33 +96,39 @@ void addLevel(detail::EvaluatorImpl& e, const FieldLevel& level) {
     split = kSplitX;
   }
   const std::size_t cells = nx * ny * nz;
-  std::vector<std::size_t> cellOf(n);
-  std::vector<cl_uint> count(cells + 1, 0);
-  for (std::size_t j = 0; j < n; ++j) {
-    const auto i = static_cast<Eigen::Index>(j);
-    const auto ix = std::min(nx - 1, static_cast<std::size_t>((c(i, 0) - lo.x()) / cellX));
-    const auto iy = std::min(ny - 1, static_cast<std::size_t>((c(i, 1) - lo.y()) / cell));
-    const auto iz = std::min(nz - 1, static_cast<std::size_t>((c(i, 2) - lo.z()) / cell));
-    cellOf[j] = (iz * ny + iy) * nx + ix;
-    ++count[cellOf[j] + 1];
-  }
-  for (std::size_t k = 0; k < cells; ++k) count[k + 1] += count[k];
   const std::size_t cellBase = e.cellStart.size();
   const std::size_t centreBase = e.packed.size() / 4;
   if (centreBase + n > std::numeric_limits<cl_uint>::max() || cellBase + cells + 1 > std::numeric_limits<cl_uint>::max()) {
     throw InvalidArgument("FieldEvaluator: the field has too many centres for 32-bit indices");
   }
-  e.cellStart.insert(e.cellStart.end(), count.begin(), count.end());
-  e.packed.resize(4 * (centreBase + n));
-  std::vector<cl_uint> next(count.begin(), count.end() - 1);
+  // A counting sort straight into the level's part of the table (no count or cursor copies: at the finest
+  // levels the table has millions of cells, and fresh pages are what a fit pays most for). After the
+  // prefix sum, start[c + 1] is where cell c ends; the centres go in from the last one down, each at
+  // --start[its cell + 1], so each cell keeps its centres in index order and start[c + 1] ends as the
+  // start of cell c, shifted one place down at the end.
+  std::vector<cl_uint> cellOf(n);  // cells ≤ kMaxCellsPerLevel
+  e.cellStart.resize(cellBase + cells + 1, 0);
+  cl_uint* start = e.cellStart.data() + cellBase;
   for (std::size_t j = 0; j < n; ++j) {
-    const std::size_t slot = 4 * (centreBase + next[cellOf[j]]++);
+    const auto i = static_cast<Eigen::Index>(j);
+    const auto ix = std::min(nx - 1, static_cast<std::size_t>((c(i, 0) - lo.x()) / cellX));
+    const auto iy = std::min(ny - 1, static_cast<std::size_t>((c(i, 1) - lo.y()) / cell));
+    const auto iz = std::min(nz - 1, static_cast<std::size_t>((c(i, 2) - lo.z()) / cell));
+    cellOf[j] = static_cast<cl_uint>((iz * ny + iy) * nx + ix);
+    ++start[cellOf[j] + 1];
+  }
+  for (std::size_t k = 0; k < cells; ++k) start[k + 1] += start[k];
+  e.packed.resize(4 * (centreBase + n));
+  for (std::size_t j = n; j-- > 0;) {
+    const std::size_t slot = 4 * (centreBase + --start[cellOf[j] + 1]);
     const auto i = static_cast<Eigen::Index>(j);
     e.packed[slot] = c(i, 0);
     e.packed[slot + 1] = c(i, 1);
     e.packed[slot + 2] = c(i, 2);
     e.packed[slot + 3] = level.weights[i];
   }
+  std::copy(start + 1, start + cells + 1, start);  // start[c] = the start of cell c
+  start[cells] = static_cast<cl_uint>(n);
   e.params.insert(e.params.end(), {lo.x(), lo.y(), lo.z(), 1.0 / cell, level.sigma, 1.0 / level.sigma, 1.0 / cellX});
   e.dims.insert(e.dims.end(), {static_cast<cl_uint>(nx), static_cast<cl_uint>(ny), static_cast<cl_uint>(nz),
                                static_cast<cl_uint>(cellBase), static_cast<cl_uint>(centreBase)});
