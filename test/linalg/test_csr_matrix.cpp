@@ -92,6 +92,15 @@ TEST_SUITE("linalg") {
     CHECK(y[2] == doctest::Approx(3.5));
     CHECK((a.toEigen() * x - y).norm() < 1e-14);
     CHECK(a.diagonal()[2] == 5.0);
+    CHECK(a.diagonal() == Eigen::Vector3d(4.0, 3.0, 5.0));
+    // Not validated: a row without its diagonal gives 0, a repeated diagonal entry its last value.
+    CsrMatrix odd;
+    odd.rows = 3;
+    odd.cols = 4;
+    odd.rowPtr = {0, 3, 4, 5};
+    odd.colIdx = {0, 2, 0, 3, 2};
+    odd.values = {1.0, 7.0, 2.0, 9.0, 6.0};
+    CHECK(odd.diagonal() == Eigen::Vector3d(2.0, 0.0, 6.0));
     CHECK(a.isSymmetric());
     CsrMatrix b = a;
     b.values[1] = 2.0;
