@@ -14,7 +14,8 @@ CellGrid::CellGrid(const Points& points, double cell, std::size_t maxCells) {
   if (n > static_cast<Eigen::Index>(std::numeric_limits<Index>::max())) {
     throw InvalidArgument("CellGrid: " + std::to_string(n) + " points exceed 2^31 - 1");
   }
-  maxCells = std::min<std::size_t>(maxCells, std::numeric_limits<std::uint32_t>::max() - 1);  // cells fit 32 bits
+  // Cell numbers and per-axis counts fit 32-bit and int arithmetic.
+  maxCells = std::min<std::size_t>(maxCells, static_cast<std::size_t>(std::numeric_limits<int>::max()) - 1);
   double lo[3], hi[3];
   for (int a = 0; a < 3; ++a) {
     lo[a] = std::numeric_limits<double>::infinity();
