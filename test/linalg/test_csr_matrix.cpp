@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/sparse.hpp"
@@ -13,15 +15,17 @@
 using namespace duplexfit;
 
 namespace {
-CsrMatrix small() {
+CsrMatrix csr(Index rows, Index cols, std::vector<Index> rowPtr, std::vector<Index> colIdx, std::vector<double> values) {
   CsrMatrix a;
-  a.rows = 3;
-  a.cols = 3;
-  a.rowPtr = {0, 2, 3, 5};
-  a.colIdx = {0, 2, 1, 0, 2};
-  a.values = {4.0, 1.0, 3.0, 1.0, 5.0};
+  a.rows = rows;
+  a.cols = cols;
+  a.rowPtr = std::move(rowPtr);
+  a.colIdx = std::move(colIdx);
+  a.values = std::move(values);
   return a;
 }
+
+CsrMatrix small() { return csr(3, 3, {0, 2, 3, 5}, {0, 2, 1, 0, 2}, {4.0, 1.0, 3.0, 1.0, 5.0}); }
 
 std::string validationMessage(const CsrMatrix& a) {
   try {
@@ -94,12 +98,7 @@ TEST_SUITE("linalg") {
     CHECK(a.diagonal()[2] == 5.0);
     CHECK(a.diagonal() == Eigen::Vector3d(4.0, 3.0, 5.0));
     // Not validated: a row without its diagonal gives 0, a repeated diagonal entry its last value.
-    CsrMatrix odd;
-    odd.rows = 3;
-    odd.cols = 4;
-    odd.rowPtr = {0, 3, 4, 5};
-    odd.colIdx = {0, 2, 0, 3, 2};
-    odd.values = {1.0, 7.0, 2.0, 9.0, 6.0};
+    const CsrMatrix odd = csr(3, 4, {0, 3, 4, 5}, {0, 2, 0, 3, 2}, {1.0, 7.0, 2.0, 9.0, 6.0});
     CHECK(odd.diagonal() == Eigen::Vector3d(2.0, 0.0, 6.0));
     CHECK(a.isSymmetric());
     CsrMatrix b = a;
