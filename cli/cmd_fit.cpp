@@ -6,6 +6,8 @@
 #include <iomanip>
 #include <iostream>
 #include <optional>
+#include <string>
+#include <vector>
 
 #include "commands.hpp"
 #include "options.hpp"
@@ -64,7 +66,9 @@ int cmdFit(int argc, char** argv) {
          "--preconditioner",
          [&fit](const std::string& v) { fit.preconditioner = parsePreconditionerKind(v); },
          "the level solves' preconditioner: fsai (default), block-jacobi or jacobi")
-      ->check(CLI::IsMember({"fsai", "block-jacobi", "jacobi"}))
+      ->check(CLI::IsMember(std::vector<std::string>{preconditionerKindName(PreconditionerKind::Fsai),
+                                                     preconditionerKindName(PreconditionerKind::BlockJacobi),
+                                                     preconditionerKindName(PreconditionerKind::Jacobi)}))
       ->type_name("P");
   addNumber(app, "fsai-threshold", fit.fsaiThreshold,
             "FSAI keeps the couplings |a_ij| >= T sqrt(a_ii a_jj), 0 .. 1 (default 0.2)");

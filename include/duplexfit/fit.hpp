@@ -153,7 +153,8 @@ struct FitReport {
   std::string device;
   std::string deviceTuning;  ///< Device::tuning().describe(): launch shape and field kernel (report.json "device_tuning")
   std::string precision;
-  /// The level solves' preconditioner ("fsai-4", "block-jacobi-16", "jacobi"; report.json "preconditioner").
+  /// The level solves' preconditioner ("fsai (threshold 0.2, at most 32 couplings a row)",
+  /// "block-jacobi-16" or "jacobi"; report.json "preconditioner").
   /// Distributed fits name the one of their gathered levels and say that the distributed levels use
   /// block Jacobi on each rank's rows.
   std::string preconditioner;

@@ -119,7 +119,7 @@ ConstraintOptions levelConstraintOptions(const FitOptions& options, const std::v
 /// A level's solver options: options.solver with the absolute tolerance levelTolerance (when it has none)
 /// and, below the finest level, the relative tolerance coarseTolerance.
 SolverOptions levelSolverOptions(const FitOptions& options, bool finest);
-/// The name of the level solves' preconditioner under `options` ("fsai-4", "block-jacobi-16", "jacobi").
+/// The name of the level solves' preconditioner under `options` (FsaiPreconditioner::describe, BlockJacobiPreconditioner::describe or "jacobi").
 std::string preconditionerName(const FitOptions& options);
 
 /// Solves a level's system A w = b on the device as every level of a fit is solved: A and b uploaded in

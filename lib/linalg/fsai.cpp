@@ -11,10 +11,7 @@
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/linalg.hpp"
-
-#ifdef _OPENMP
-#include <omp.h>
-#endif
+#include "parallel/omp_threads.hpp"
 
 namespace duplexfit {
 
@@ -150,20 +147,14 @@ FsaiPreconditioner::FsaiPreconditioner(const Device& device, const CsrMatrix& a,
   gt.rowPtr.assign(n_ + 1, 0);
   gt.colIdx.resize(nnz);
   gt.values.resize(nnz);
-  int threads = 1;
-#ifdef _OPENMP
-  threads = std::max(1, omp_get_max_threads());
-#endif
+  const int threads = std::max(1, detail::maxThreads());
   std::vector<std::vector<Index>> counts(static_cast<std::size_t>(threads));
 #pragma omp parallel num_threads(threads)
   {
-    int t = 0;
-#ifdef _OPENMP
-    t = omp_get_thread_num();
-#endif
-    const std::size_t r0 = n_ * static_cast<std::size_t>(t) / static_cast<std::size_t>(threads);
-    const std::size_t r1 = n_ * (static_cast<std::size_t>(t) + 1) / static_cast<std::size_t>(threads);
-    std::vector<Index>& c = counts[static_cast<std::size_t>(t)];
+    // The rows split by the team's actual size (the runtime may give fewer threads than asked).
+    const auto t = static_cast<std::size_t>(detail::threadId()), nt = static_cast<std::size_t>(detail::teamSize());
+    const std::size_t r0 = n_ * t / nt, r1 = n_ * (t + 1) / nt;
+    std::vector<Index>& c = counts[t];
     c.assign(n_, 0);
     for (auto e = static_cast<std::size_t>(g.rowPtr[r0]); e < static_cast<std::size_t>(g.rowPtr[r1]); ++e) {
       ++c[static_cast<std::size_t>(g.colIdx[e])];
@@ -175,9 +166,10 @@ FsaiPreconditioner::FsaiPreconditioner(const Device& device, const CsrMatrix& a,
       Index at = 0;
       for (std::size_t col = 0; col < n_; ++col) {
         gt.rowPtr[col] = at;
-        for (auto& tc : counts) {
-          const Index here = tc[col];
-          tc[col] = at;
+        for (std::size_t u = 0; u < nt; ++u) {
+          Index& slot = counts[u][col];
+          const Index here = slot;
+          slot = at;
           at += here;
         }
       }
