@@ -7,10 +7,14 @@
 #include <cctype>
 #include <chrono>
 #include <cmath>
+#include <exception>
+#include <functional>
 #include <iomanip>
 #include <iterator>
 #include <memory>
 #include <sstream>
+#include <system_error>
+#include <thread>
 #include <utility>
 
 #include "duplexfit/error.hpp"
@@ -871,16 +875,62 @@ std::vector<std::string> pipelineFieldNames(const PipelineResult& result) {
   return names;
 }
 
+namespace {
+
+/// Runs every task, one thread each (this thread takes the last; a task whose thread cannot be started
+/// runs here too), and rethrows the first task's exception in list order after all have stopped.
+void runConcurrently(const std::vector<std::function<void()>>& tasks) {
+  std::vector<std::exception_ptr> errors(tasks.size());
+  const auto run = [&](std::size_t i) {
+    try {
+      tasks[i]();
+    } catch (...) {
+      errors[i] = std::current_exception();
+    }
+  };
+  std::vector<std::thread> threads;
+  std::size_t here = 0;  // tasks [here, size) run on this thread
+  for (; here + 1 < tasks.size(); ++here) {
+    try {
+      threads.emplace_back(run, here);
+    } catch (const std::system_error&) {
+      break;  // no thread to spare: the rest run here
+    }
+  }
+  for (std::size_t i = here; i < tasks.size(); ++i) run(i);
+  for (std::thread& th : threads) th.join();
+  for (const std::exception_ptr& e : errors) {
+    if (e) std::rethrow_exception(e);
+  }
+}
+
+}  // namespace
+
 void writePipelineOutputs(const PipelineResult& result, StagedFolder& folder, const std::string& meshFormat) {
   if (meshFormat != "ply" && meshFormat != "obj" && meshFormat != "stl" && meshFormat != "3mf") {
     throw InvalidArgument("mesh format must be ply, obj, stl or 3mf, not '" + meshFormat + "'");
   }
   const auto t = Clock::now();
+  // The files are written at once, a thread each: most of a write is the serialisation and the kernel's
+  // copy into fresh page-cache pages, both CPU work (fandisk_550k: 0.6 s for the 104 MB field and 0.3 s
+  // for each mesh, one after the other). The first error in file order is thrown once every writer has
+  // stopped; the staged folder is then not committed, so nothing half-written is left.
+  // The staged paths are taken here, in order (StagedFolder::path records each name; not thread-safe).
+  std::vector<std::function<void()>> writers;
   const std::vector<std::string> meshNames = pipelineMeshNames(result, meshFormat);
-  for (std::size_t i = 0; i < meshNames.size(); ++i) writeMesh(folder.path(meshNames[i]), result.surfaces[i].mesh);
-  if (result.shell) writeMesh(folder.path(pipelineShellName(meshFormat)), result.shell->mesh);
+  for (std::size_t i = 0; i < meshNames.size(); ++i) {
+    writers.emplace_back([&mesh = result.surfaces[i].mesh, path = folder.path(meshNames[i])] { writeMesh(path, mesh); });
+  }
+  if (result.shell) {
+    writers.emplace_back([&mesh = result.shell->mesh, path = folder.path(pipelineShellName(meshFormat))] {
+      writeMesh(path, mesh);
+    });
+  }
   const std::vector<std::string> fieldNames = pipelineFieldNames(result);
-  for (std::size_t i = 0; i < fieldNames.size(); ++i) result.fields[i].save(folder.path(fieldNames[i]));
+  for (std::size_t i = 0; i < fieldNames.size(); ++i) {
+    writers.emplace_back([&field = result.fields[i], path = folder.path(fieldNames[i])] { field.save(path); });
+  }
+  runConcurrently(writers);
   std::ostringstream json;
   writePipelineReport(json, result, meshFormat, secondsSince(t));
   {
