@@ -219,6 +219,12 @@ class Refiner {
         next.clear();
         for (const Block& b : current) refine(b, coarseLevel, next);
         batch_.flush();
+        if (!deferred_.empty()) {
+          // The last level's blocks that waited for their centre node (refineCells).
+          for (const Block& b : deferred_) refineCells(b, true);
+          deferred_.clear();
+          batch_.flush();
+        }
         current.swap(next);
       }
       if (report) report(progressEnd * (bz1 - bzLo) / std::max(1, bzHi - bzLo));
@@ -291,7 +297,7 @@ class Refiner {
     if (skippable(b)) return;
     if (coarseLevel) ++stats_.refinedBlocks;
     if (maxExtent <= 2) {
-      refineCells(b);
+      refineCells(b, false);
       return;
     }
     // Halve every axis with at least 2 cells; sample the new lattice nodes; test the children at
@@ -324,19 +330,33 @@ class Refiner {
   /// f ≠ c inside each). A connected cell covered by such balls holds no point with f = c, so its
   /// corners all lie on one side of c and it has no crossing. Only the cells not covered for some
   /// iso value get their nodes sampled and are contoured.
-  void refineCells(const Block& b) {
+  ///
+  /// A block of 2 × 2 × 2 cells whose corners lie on one side of every iso value but whose balls
+  /// leave a cell uncovered first has its centre node sampled (`withCentre` false: requested, the
+  /// block deferred to a second pass after the batch). The centre is a corner of all 8 cells, so it is
+  /// never wasted where a cell is sampled, and its ball covers a cell together with the opposite
+  /// block corner's wherever both lie about L times the cell's edge from the level: the band of
+  /// sampled cells on either side of a surface narrows (fandisk_550k: about 3.9 nodes evaluated per
+  /// node of a crossed cell before). A centre on the other side of an iso value makes the block a
+  /// crossing one for it: every cell is then sampled, as for a corner there.
+  void refineCells(const Block& b, bool withCentre) {
     double f[8];
     for (int c = 0; c < 8; ++c) {
       f[c] = static_cast<double>(store_.value(
           (c & 1) ? b.hi[0] : b.lo[0], (c & 2) ? b.hi[1] : b.lo[1], (c & 4) ? b.hi[2] : b.lo[2]));
     }
-    // Per iso value: whether all corners lie strictly on one side (with a sign change among the
-    // corners every cell is sampled, as the coarser levels do, so that a field steeper than the
+    const bool full = b.hi[0] - b.lo[0] == 2 && b.hi[1] - b.lo[1] == 2 && b.hi[2] - b.lo[2] == 2;
+    const int mid[3] = {b.lo[0] + 1, b.lo[1] + 1, b.lo[2] + 1};
+    double fc = 0.0;
+    if (withCentre) fc = static_cast<double>(store_.value(mid[0], mid[1], mid[2]));
+    // Per iso value: whether all corners (and the centre, when known) lie strictly on one side (with a
+    // sign change every cell is sampled, as the coarser levels do, so that a field steeper than the
     // bound still gives the continuation surfaces to follow), and the squared ball radii.
     std::vector<char>& oneSide = oneSide_;
-    std::vector<std::array<double, 8>>& rho2 = rho2_;
+    std::vector<std::array<double, 9>>& rho2 = rho2_;
     oneSide.assign(isos_.size(), 0);
     rho2.resize(isos_.size());
+    bool allOneSide = true;
     for (std::size_t q = 0; q < isos_.size(); ++q) {
       int above = 0, below = 0;
       for (int c = 0; c < 8; ++c) {
@@ -346,27 +366,52 @@ class Refiner {
         rho2[q][static_cast<std::size_t>(c)] = r * r;
       }
       oneSide[q] = above == 8 || below == 8;  // false for a NaN corner too
+      if (withCentre) {
+        oneSide[q] = oneSide[q] && (above == 8 ? fc > isos_[q] : fc < isos_[q]);
+        const double r = std::abs(fc - isos_[q]) / lipschitz_;
+        rho2[q][8] = r * r;
+      } else {
+        rho2[q][8] = 0.0;
+      }
+      allOneSide = allOneSide && oneSide[q];
     }
     Balls balls;
+    balls.count = withCentre ? 9 : 8;
     for (int c = 0; c < 8; ++c) {
       for (int a = 0; a < 3; ++a) {
         balls.centre[c][a] = ((c >> a) & 1 ? b.hi[a] - b.lo[a] : 0) * h_[a];
       }
     }
+    for (int a = 0; a < 3; ++a) balls.centre[8][a] = h_[a];
+    const auto covered = [&](int i, int j, int k) {
+      const int idx[3] = {i, j, k};
+      std::array<double, 3> lo{}, hi{};
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = (idx[a] - b.lo[a]) * h_[a];
+        hi[a] = lo[a] + h_[a];
+      }
+      bool all = true;
+      for (std::size_t q = 0; q < isos_.size() && all; ++q) {
+        all = oneSide[q] && (balls.rho2 = rho2[q], balls.cover(lo, hi, kCoverDepth));
+      }
+      return all;
+    };
+    if (!withCentre && full && allOneSide) {
+      bool any = false;
+      for (int k = b.lo[2]; k < b.hi[2] && !any; ++k) {
+        for (int j = b.lo[1]; j < b.hi[1] && !any; ++j) {
+          for (int i = b.lo[0]; i < b.hi[0] && !any; ++i) any = !covered(i, j, k);
+        }
+      }
+      if (!any) return;
+      batch_.request(mid[0], mid[1], mid[2]);
+      deferred_.push_back(b);
+      return;
+    }
     for (int k = b.lo[2]; k < b.hi[2]; ++k) {
       for (int j = b.lo[1]; j < b.hi[1]; ++j) {
         for (int i = b.lo[0]; i < b.hi[0]; ++i) {
-          const int idx[3] = {i, j, k};
-          std::array<double, 3> lo{}, hi{};
-          for (int a = 0; a < 3; ++a) {
-            lo[a] = (idx[a] - b.lo[a]) * h_[a];
-            hi[a] = lo[a] + h_[a];
-          }
-          bool covered = true;
-          for (std::size_t q = 0; q < isos_.size() && covered; ++q) {
-            covered = oneSide[q] && (balls.rho2 = rho2[q], balls.cover(lo, hi, kCoverDepth));
-          }
-          if (covered) continue;
+          if (covered(i, j, k)) continue;
           for (int corner = 0; corner < 8; ++corner) {
             batch_.request(i + (corner & 1), j + ((corner >> 1) & 1), k + ((corner >> 2) & 1));
           }
@@ -379,10 +424,12 @@ class Refiner {
   /// Subdivisions tried when covering a cell by balls (each halves the box on every axis).
   static constexpr int kCoverDepth = 2;
 
-  /// Open balls around a block's corners (block-local coordinates).
+  /// Open balls around a block's corners and (the 9th, when count is 9) its centre, in block-local
+  /// coordinates.
   struct Balls {
-    double centre[8][3];
-    std::array<double, 8> rho2;
+    int count = 8;
+    double centre[9][3];
+    std::array<double, 9> rho2;
 
     /// True when the box [lo, hi] lies in the union of the balls: in one ball, or (depth > 0) each
     /// of its 8 halves is covered. A box whose centre is in no ball is never covered.
@@ -390,7 +437,7 @@ class Refiner {
       std::array<double, 3> mid{};
       for (int a = 0; a < 3; ++a) mid[a] = 0.5 * (lo[a] + hi[a]);
       bool centreIn = false;
-      for (int c = 0; c < 8; ++c) {
+      for (int c = 0; c < count; ++c) {
         double far2 = 0.0, mid2 = 0.0;
         for (int a = 0; a < 3; ++a) {
           const double d = std::max(std::abs(lo[a] - centre[c][a]), std::abs(hi[a] - centre[c][a]));
@@ -418,7 +465,8 @@ class Refiner {
   double lipschitz_;
   ZRange range_;
   std::vector<char> oneSide_;                 ///< refineCells scratch
-  std::vector<std::array<double, 8>> rho2_;  ///< refineCells scratch
+  std::vector<std::array<double, 9>> rho2_;  ///< refineCells scratch
+  std::vector<Block> deferred_;              ///< last-level blocks waiting for their centre node
   NodeStore& store_;
   BatchSampler& batch_;
   PolygonizeStats& stats_;
