@@ -52,6 +52,14 @@ class NeighborIndex {
   /// exact ≤ test makes it on the coordinates.
   /// @throws InvalidArgument when radius ≤ 0 or not finite; Cancelled.
   NeighborLists nearestWithin(const Points& queries, double radius, Interrupter* interrupter = nullptr) const;
+  /// Whether some point other than exclude[i] (−1: none excluded) lies at distance < radius[i] from query
+  /// i: at most one hit a query (one such point, not necessarily the nearest), none where the ball is
+  /// empty. The distance is the other searches' (so "no hit" is exactly "the nearest other point's
+  /// distance ≥ radius[i]"), and the search stops at the first point found: an emptiness test costs
+  /// less than the nearest-point search it replaces (the fit's offset validity test).
+  /// @throws InvalidArgument when the sizes differ or a radius is not finite; Cancelled.
+  NeighborLists anyOtherWithin(const Points& queries, const std::vector<Index>& exclude,
+                               const std::vector<double>& radius, Interrupter* interrupter = nullptr) const;
 
  private:
   NeighborLists radiusImpl(const Points& queries, double radius, Interrupter* interrupter, bool sorted) const;

@@ -59,6 +59,25 @@ class NearestOther {
     nearestOtherInTree(tree(), qs, src, dist, other, interrupter_);
   }
 
+  /// near[k] = 1 when a point of P other than src[k] lies at distance < radius[k] from row k of qs: exactly
+  /// `dist[k] < radius[k]` of operator(), but the tree's search stops at the first such point (the
+  /// validity test and the medial bisection only ask this; fandisk_550k: ~0.4 s less of the fit).
+  void near(const Points& qs, const std::vector<Eigen::Index>& src, const std::vector<double>& radius, double step,
+            std::vector<char>& near) {
+    near.assign(src.size(), 0);
+    if (std::abs(step) > kBvhSpacings * spacing()) {
+      std::vector<double> dist;
+      std::vector<Eigen::Index> other;
+      (*this)(qs, src, step, dist, other);
+      for (std::size_t k = 0; k < src.size(); ++k) near[k] = dist[k] < radius[k] ? 1 : 0;
+      return;
+    }
+    std::vector<Index> exclude(src.size());
+    for (std::size_t k = 0; k < src.size(); ++k) exclude[k] = static_cast<Index>(src[k]);
+    const NeighborLists hits = tree().anyOtherWithin(qs, exclude, radius, interrupter_);
+    for (std::size_t k = 0; k < src.size(); ++k) near[k] = hits.count(k) > 0 ? 1 : 0;
+  }
+
  private:
   const NeighborIndex& tree() {
     if (!tree_) tree_ = std::make_unique<NeighborIndex>(points_);
@@ -122,8 +141,15 @@ Companions validCompanions(const Points& points, const Points& normals, NearestO
   const double sign = step > 0.0 ? 1.0 : -1.0;
   std::vector<double> dist;
   std::vector<Eigen::Index> other;
-  nearestOther(q, source, step, dist, other);
   const double limit = std::abs(step) * (1.0 - eta);
+  if (sideTest) {
+    nearestOther(q, source, step, dist, other);  // the side test needs the nearest point itself
+  } else {
+    std::vector<char> near;
+    nearestOther.near(q, source, std::vector<double>(source.size(), limit), step, near);
+    dist.assign(source.size(), 0.0);
+    for (std::size_t k = 0; k < source.size(); ++k) dist[k] = near[k] != 0 ? 0.0 : limit;
+  }
   std::vector<char> keep(source.size(), 0);
   std::vector<std::size_t> rejected;
   for (std::size_t k = 0; k < source.size(); ++k) {
@@ -150,15 +176,18 @@ Companions validCompanions(const Points& points, const Points& normals, NearestO
   std::vector<Eigen::Index> src(m);
   for (std::size_t r = 0; r < m; ++r) src[r] = source[rejected[r]];
   Points mq(static_cast<Eigen::Index>(m), 3);
+  std::vector<double> radius(m);
+  std::vector<char> near;
   for (int iteration = 0; iteration < 6; ++iteration) {
     for (std::size_t r = 0; r < m; ++r) {
       const double s = 0.5 * (lo[r] + hi[r]);
       mq.row(static_cast<Eigen::Index>(r)) = points.row(src[r]) + sign * s * normals.row(src[r]);
+      radius[r] = s * (1.0 - eta);
     }
-    nearestOther(mq, src, step, dist, other);
+    nearestOther.near(mq, src, radius, step, near);
     for (std::size_t r = 0; r < m; ++r) {
       const double s = 0.5 * (lo[r] + hi[r]);
-      (dist[r] >= s * (1.0 - eta) ? lo[r] : hi[r]) = s;
+      (near[r] == 0 ? lo[r] : hi[r]) = s;
     }
   }
   for (std::size_t r = 0; r < m; ++r) {

@@ -140,6 +140,37 @@ class KnnCollector final : public flann::ResultSet<double> {
   double bound_;
 };
 
+/// Stops at the first point other than the excluded one with rounded distance < radius: the bound
+/// then goes negative, which prunes every branch not yet entered.
+class AnyOtherCollector final : public flann::ResultSet<double> {
+ public:
+  void reset(Index exclude, double radius) noexcept {
+    exclude_ = exclude;
+    radius_ = radius;
+    bound_ = squaredBound(radius);
+    found_ = false;
+  }
+  bool full() const override { return true; }
+  double worstDist() const override { return bound_; }
+  void addPoint(double squared, size_t index) override {
+    if (found_ || static_cast<Index>(index) == exclude_) return;
+    const double d = std::sqrt(squared);
+    if (!(d < radius_)) return;
+    hit_ = Hit{d, static_cast<Index>(index)};
+    found_ = true;
+    bound_ = -1.0;
+  }
+  bool found() const noexcept { return found_; }
+  const Hit& hit() const noexcept { return hit_; }
+
+ private:
+  Index exclude_ = -1;
+  double radius_ = 0.0;
+  double bound_ = 0.0;
+  bool found_ = false;
+  Hit hit_{};
+};
+
 using detail::maxThreads;
 using detail::teamSize;
 using detail::threadId;
@@ -403,6 +434,39 @@ NeighborLists NeighborIndex::knnImpl(const Points& queries, std::size_t k, doubl
         collector.clear();
         tree.findNeighbors(collector, query, params);
         collector.appendSorted(hits);
+      },
+      interrupter);
+}
+
+NeighborLists NeighborIndex::anyOtherWithin(const Points& queries, const std::vector<Index>& exclude,
+                                           const std::vector<double>& radius, Interrupter* interrupter) const {
+  if (exclude.size() != static_cast<std::size_t>(queries.rows()) || radius.size() != exclude.size()) {
+    throw InvalidArgument("NeighborIndex::anyOtherWithin: " + std::to_string(queries.rows()) + " queries, " +
+                          std::to_string(exclude.size()) + " exclusions and " + std::to_string(radius.size()) +
+                          " radii");
+  }
+  for (std::size_t i = 0; i < radius.size(); ++i) {
+    if (!std::isfinite(radius[i])) {
+      throw InvalidArgument("NeighborIndex::anyOtherWithin: radius " + std::to_string(i) + " is not finite");
+    }
+  }
+  checkFinite(queries, "query");
+  if (size() == 0) {
+    NeighborLists out;
+    out.offsets.assign(static_cast<std::size_t>(queries.rows()) + 1, 0);
+    return out;
+  }
+  const Tree& tree = *impl_->tree;
+  const flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, false);
+  const double* first = queries.data();
+  return impl_->run(
+      queries, [] { return AnyOtherCollector(); },
+      [&](AnyOtherCollector& collector, const double* query, std::vector<Hit>& hits) {
+        const auto i = static_cast<std::size_t>((query - first) / 3);
+        if (!(radius[i] > 0.0)) return;  // no distance is below a radius ≤ 0
+        collector.reset(exclude[i], radius[i]);
+        tree.findNeighbors(collector, query, params);
+        if (collector.found()) hits.push_back(collector.hit());
       },
       interrupter);
 }

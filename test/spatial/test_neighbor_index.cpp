@@ -188,6 +188,53 @@ TEST_SUITE("spatial") {
     CHECK(NeighborIndex(Points(0, 3)).nearestWithin(queries, 0.1).indices.empty());
   }
 
+  TEST_CASE("neighbors: anyOtherWithin finds a point other than the excluded one exactly when brute force does") {
+    const Points points = cloudWithDuplicates();
+    const Points queries = mixedQueries(points);
+    const NeighborIndex index(points);
+    std::mt19937 engine(11u);
+    std::uniform_real_distribution<double> u(0.0, 0.3);
+    std::uniform_int_distribution<int> pick(-1, static_cast<int>(points.rows()) - 1);
+    std::vector<Index> exclude(static_cast<std::size_t>(queries.rows()));
+    std::vector<double> radius(exclude.size());
+    for (std::size_t q = 0; q < exclude.size(); ++q) {
+      exclude[q] = static_cast<Index>(pick(engine));
+      radius[q] = q % 7 == 0 ? 0.0 : u(engine);
+    }
+    // Radii exactly at a nearest other point's distance (strict: not found) and one ulp beyond (found).
+    for (std::size_t q = 0; q < exclude.size(); q += 5) {
+      double best = std::numeric_limits<double>::infinity();
+      for (Eigen::Index j = 0; j < points.rows(); ++j) {
+        if (static_cast<Index>(j) != exclude[q]) best = std::min(best, distance(queries, static_cast<Eigen::Index>(q), points, j));
+      }
+      radius[q] = q % 10 == 0 ? best : std::nextafter(best, 2.0);
+    }
+    const NeighborLists got = index.anyOtherWithin(queries, exclude, radius);
+    std::size_t found = 0;
+    for (std::size_t q = 0; q < exclude.size(); ++q) {
+      CAPTURE(q);
+      bool near = false;
+      for (Eigen::Index j = 0; j < points.rows(); ++j) {
+        near = near || (static_cast<Index>(j) != exclude[q] &&
+                        distance(queries, static_cast<Eigen::Index>(q), points, j) < radius[q]);
+      }
+      REQUIRE(got.count(q) == (near ? 1U : 0U));
+      if (!near) continue;
+      ++found;
+      const auto e = static_cast<std::size_t>(got.offsets[q]);
+      const Index j = got.indices[e];
+      CHECK(j != exclude[q]);
+      CHECK(got.distances[e] == distance(queries, static_cast<Eigen::Index>(q), points, j));
+      CHECK(got.distances[e] < radius[q]);
+    }
+    CHECK(found > exclude.size() / 4);
+    CHECK(found < exclude.size());
+    CHECK_THROWS_AS(index.anyOtherWithin(queries, std::vector<Index>(3, -1), radius), InvalidArgument);
+    radius[1] = std::numeric_limits<double>::quiet_NaN();
+    CHECK_THROWS_AS(index.anyOtherWithin(queries, exclude, radius), InvalidArgument);
+    CHECK(NeighborIndex(Points(0, 3)).anyOtherWithin(queries, exclude, std::vector<double>(exclude.size(), 1.0)).indices.empty());
+  }
+
   TEST_CASE("neighbors: radius and knn search across many query blocks equal brute force") {
     const Points points = randomPoints(2500, 3u);
     const NeighborIndex index(points);
