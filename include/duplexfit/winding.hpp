@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 
+#include "duplexfit/neighbors.hpp"
 #include "duplexfit/types.hpp"
 
 namespace duplexfit {
@@ -26,6 +27,10 @@ struct WindingOptions {
 /// a_i = π ρ² / m with ρ the largest projected distance among the m ≤ k agreeing neighbours.
 /// Points with a zero normal get area 0. @throws InvalidArgument for mismatched sizes.
 Eigen::VectorXd estimatePointAreas(const Points& positions, const Points& normals, int k = 12);
+/// The same with a caller's index over `positions` (the same points in the same order), so that a caller
+/// that needs that index anyway does not build a second one. @throws InvalidArgument also when the
+/// index's size differs.
+Eigen::VectorXd estimatePointAreas(const Points& positions, const Points& normals, int k, const NeighborIndex& index);
 
 class WindingNumber {
  public:

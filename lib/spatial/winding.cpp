@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <string>
 #include <vector>
 
 #include <Eigen/Dense>
@@ -40,10 +41,20 @@ struct Node {
 Eigen::VectorXd estimatePointAreas(const Points& positions, const Points& normals, int k) {
   if (positions.rows() != normals.rows()) throw InvalidArgument("estimatePointAreas: positions and normals differ in count");
   if (k < 1) throw InvalidArgument("estimatePointAreas: k must be at least 1");
+  if (positions.rows() < 2) return Eigen::VectorXd::Zero(positions.rows());
+  return estimatePointAreas(positions, normals, k, NeighborIndex(positions));
+}
+
+Eigen::VectorXd estimatePointAreas(const Points& positions, const Points& normals, int k, const NeighborIndex& index) {
+  if (positions.rows() != normals.rows()) throw InvalidArgument("estimatePointAreas: positions and normals differ in count");
+  if (k < 1) throw InvalidArgument("estimatePointAreas: k must be at least 1");
+  if (index.size() != static_cast<std::size_t>(positions.rows())) {
+    throw InvalidArgument("estimatePointAreas: the index holds " + std::to_string(index.size()) + " points, not " +
+                          std::to_string(positions.rows()));
+  }
   const Eigen::Index n = positions.rows();
   Eigen::VectorXd areas = Eigen::VectorXd::Zero(n);
   if (n < 2) return areas;
-  const NeighborIndex index(positions);
   const NeighborLists nn = index.knnSearch(positions, std::min<int>(k + 1, static_cast<int>(n)));
   // A fallback for points whose neighbours all disagree: the median area of the others.
   std::vector<char> known(static_cast<std::size_t>(n), 0);

@@ -59,6 +59,11 @@ TEST_SUITE("spatial") {
     CHECK_THROWS_AS(WindingNumber(p, n), InvalidArgument);
     CHECK_THROWS_AS(estimatePointAreas(p, n, 4), InvalidArgument);
     const Points empty(0, 3);
+    // An index over other points is refused; one over the same points gives the same areas.
+    Points q = Points::Random(50, 3), m = Points::Zero(50, 3);
+    m.col(2).setOnes();
+    CHECK_THROWS_AS(estimatePointAreas(q, m, 4, NeighborIndex(q.topRows(49))), InvalidArgument);
+    CHECK(estimatePointAreas(q, m, 4, NeighborIndex(q)) == estimatePointAreas(q, m, 4));
     const WindingNumber none(empty, empty);
     CHECK(none.evaluate(Points::Zero(3, 3)).cwiseAbs().maxCoeff() == 0.0);
   }
