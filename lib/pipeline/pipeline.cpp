@@ -9,6 +9,7 @@
 #include <cmath>
 #include <exception>
 #include <functional>
+#include <future>
 #include <iomanip>
 #include <iterator>
 #include <memory>
@@ -563,6 +564,20 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
   // Every fit checks its finished meshes: zero-level components without input points and offset components
   // away from |delta| are listed. (Checking the extraction's meshes before the finishing, as the first
   // version did, needed a second check whenever the neck pass replaced a mesh, and tested what is not written.)
+  // Each mesh's topology is taken on a thread of its own while the self-check runs: both only read the
+  // meshes, and the check leaves most of a core idle (fandisk_550k: 0.4 s of topology, serial, beside
+  // 0.7 s of checking at 1.2 cores). A future's destructor waits for it, should the check throw.
+  const auto topologyOf = [&meshes] {
+    std::vector<MeshTopology> topologies;
+    for (const Mesh& m : meshes) topologies.push_back(analyzeTopology(m));
+    return topologies;
+  };
+  std::future<std::vector<MeshTopology>> topologies;
+  try {
+    topologies = std::async(std::launch::async, topologyOf);
+  } catch (const std::system_error&) {
+    topologies = std::async(std::launch::deferred, topologyOf);  // no thread to spare: taken below
+  }
   progress.start("self-check");
   report.selfCheck = selfCheck(meshes, isos, checkPoints, options.selfCheck);
   for (std::size_t i = 0; i < report.selfCheck.surfaces.size(); ++i) report.selfCheck.surfaces[i].dropped = dropped[i];
@@ -570,12 +585,13 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
   logSelfCheck(report.selfCheck, progress);
   progress.end();
 
+  const std::vector<MeshTopology> topology = topologies.get();
   for (std::size_t i = 0; i < meshes.size(); ++i) {
     PipelineSurface s;
     s.field = options.separate ? i : 0;
     s.iso = options.separate ? 0.0 : isos[i];
     s.offset = isos[i];
-    s.topology = analyzeTopology(meshes[i]);
+    s.topology = topology[i];
     s.mesh = std::move(meshes[i]);
     s.finish = finished[i];
     result.surfaces.push_back(std::move(s));
