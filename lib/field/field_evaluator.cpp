@@ -32,13 +32,15 @@ struct EvaluatorImpl {
   std::vector<double> params;           // 7 per level: origin xyz, 1/cell (y, z), sigma, 1/sigma, 1/cell (x)
   std::vector<cl_uint> dims;            // 5 per level: nx, ny, nz, cell_start offset, centre offset
   std::vector<cl_uint> cellStart;       // per level nx*ny*nz + 1 prefix offsets
+  std::size_t centres = 0;               // centres of the levels added so far
   std::vector<double> packed;           // x, y, z, w per centre, sorted by cell within each level
   std::vector<float> paramsF, packedF;  // float copies (precision float)
   /// With the 8-wide kernels (float on a CPU device): the centres level by level as four arrays x, y, z,
-  /// w of the level's size each, level k from 4 × its centre offset (kernels/eval_field.cl); packedF is
-  /// then not kept. soaLevels: the levels laid out so far.
+  /// w of the level's size each, level k from 4 × its centre offset (kernels/eval_field.cl), written by
+  /// addLevel straight from the level; packed and packedF are then not kept (fandisk_550k: the whole
+  /// field's 104 MB of doubles grew again for the finest level, 0.27-0.8 s of fresh pages and copies).
+  bool soa = false;
   std::vector<float> soaF;
-  cl_uint soaLevels = 0;
   /// A device copy of one host array: `capacity` elements allocated, the first `uploaded` current.
   struct DeviceArray {
     cl::Buffer buffer;
@@ -97,7 +99,7 @@ void addLevel(detail::EvaluatorImpl& e, const FieldLevel& level) {
   }
   const std::size_t cells = nx * ny * nz;
   const std::size_t cellBase = e.cellStart.size();
-  const std::size_t centreBase = e.packed.size() / 4;
+  const std::size_t centreBase = e.centres;
   if (centreBase + n > std::numeric_limits<cl_uint>::max() || cellBase + cells + 1 > std::numeric_limits<cl_uint>::max()) {
     throw InvalidArgument("FieldEvaluator: the field has too many centres for 32-bit indices");
   }
@@ -118,15 +120,29 @@ void addLevel(detail::EvaluatorImpl& e, const FieldLevel& level) {
     ++start[cellOf[j] + 1];
   }
   for (std::size_t k = 0; k < cells; ++k) start[k + 1] += start[k];
-  e.packed.resize(4 * (centreBase + n));
-  for (std::size_t j = n; j-- > 0;) {
-    const std::size_t slot = 4 * (centreBase + --start[cellOf[j] + 1]);
-    const auto i = static_cast<Eigen::Index>(j);
-    e.packed[slot] = c(i, 0);
-    e.packed[slot + 1] = c(i, 1);
-    e.packed[slot + 2] = c(i, 2);
-    e.packed[slot + 3] = level.weights[i];
+  if (e.soa) {
+    e.soaF.resize(4 * (centreBase + n));
+    float* out = e.soaF.data() + 4 * centreBase;
+    for (std::size_t j = n; j-- > 0;) {
+      const std::size_t slot = --start[cellOf[j] + 1];
+      const auto i = static_cast<Eigen::Index>(j);
+      out[slot] = static_cast<float>(c(i, 0));
+      out[n + slot] = static_cast<float>(c(i, 1));
+      out[2 * n + slot] = static_cast<float>(c(i, 2));
+      out[3 * n + slot] = static_cast<float>(level.weights[i]);
+    }
+  } else {
+    e.packed.resize(4 * (centreBase + n));
+    for (std::size_t j = n; j-- > 0;) {
+      const std::size_t slot = 4 * (centreBase + --start[cellOf[j] + 1]);
+      const auto i = static_cast<Eigen::Index>(j);
+      e.packed[slot] = c(i, 0);
+      e.packed[slot + 1] = c(i, 1);
+      e.packed[slot + 2] = c(i, 2);
+      e.packed[slot + 3] = level.weights[i];
+    }
   }
+  e.centres += n;
   std::copy(start + 1, start + cells + 1, start);  // start[c] = the start of cell c
   start[cells] = static_cast<cl_uint>(n);
   e.params.insert(e.params.end(), {lo.x(), lo.y(), lo.z(), 1.0 / cell, level.sigma, 1.0 / level.sigma, 1.0 / cellX});
@@ -231,21 +247,11 @@ void syncArray(const Device& device, detail::EvaluatorImpl::DeviceArray& a, cons
 
 /// Makes the float copies and the device buffers current after levels were added.
 void sync(detail::EvaluatorImpl& e, double reserve) {
-  const bool soa = e.precision == Precision::Float && !e.device.isReference() && e.device.impl()->params().fieldVector;
+  const bool soa = e.soa;
   if (e.precision == Precision::Float) {
     e.paramsF.insert(e.paramsF.end(), e.params.begin() + static_cast<std::ptrdiff_t>(e.paramsF.size()), e.params.end());
     if (!soa) {
       e.packedF.insert(e.packedF.end(), e.packed.begin() + static_cast<std::ptrdiff_t>(e.packedF.size()), e.packed.end());
-    }
-  }
-  for (; soa && e.soaLevels < e.levels; ++e.soaLevels) {
-    const std::size_t first = e.dims[5 * e.soaLevels + 4];
-    const std::size_t end = e.soaLevels + 1 < e.levels ? e.dims[5 * (e.soaLevels + 1) + 4] : e.packed.size() / 4;
-    e.soaF.resize(4 * end);
-    float* out = e.soaF.data() + 4 * first;
-    const std::size_t n = end - first;
-    for (std::size_t j = 0; j < n; ++j) {
-      for (std::size_t c = 0; c < 4; ++c) out[c * n + j] = static_cast<float>(e.packed[4 * (first + j) + c]);
     }
   }
   if (e.device.isReference()) return;
@@ -279,6 +285,7 @@ FieldEvaluator::FieldEvaluator(const Device& device, const Normalization& normal
   e.precision = precision;
   e.norm = normalization;
   e.f0 = f0;
+  e.soa = precision == Precision::Float && !device.isReference() && device.impl()->params().fieldVector;
 }
 
 void FieldEvaluator::appendLevel(const FieldLevel& level) {
