@@ -66,7 +66,7 @@ Accumulator accumulate(const ImplicitField& field, const Eigen::Vector3d& x, int
   return acc;
 }
 
-// Little-endian binary writer/reader with a running FNV-1a 64 checksum.
+// Little-endian binary writer and reader with the FNV-1a 64 checksum of the bytes before it.
 /// FNV-1a 64 of `n` bytes, continuing from `hash`.
 std::uint64_t fnv1a(std::uint64_t hash, const unsigned char* b, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i) hash = (hash ^ b[i]) * 1099511628211ull;

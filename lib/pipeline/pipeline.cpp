@@ -930,8 +930,8 @@ void writePipelineOutputs(const PipelineResult& result, StagedFolder& folder, co
   // The files are written at once, a thread each: most of a write is the serialisation and the kernel's
   // copy into fresh page-cache pages, both CPU work (fandisk_550k: 0.6 s for the 104 MB field and 0.3 s
   // for each mesh, one after the other). The first error in file order is thrown once every writer has
-  // stopped; the staged folder is then not committed, so nothing half-written is left.
-  // The staged paths are taken here, in order (StagedFolder::path records each name; not thread-safe).
+  // stopped; the staged folder is then not committed, so nothing half-written is left. The staged paths
+  // are taken here, in order (StagedFolder::path records each name and is not thread-safe).
   std::vector<std::function<void()>> writers;
   const std::vector<std::string> meshNames = pipelineMeshNames(result, meshFormat);
   for (std::size_t i = 0; i < meshNames.size(); ++i) {

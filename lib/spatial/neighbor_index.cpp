@@ -140,6 +140,16 @@ class KnnCollector final : public flann::ResultSet<double> {
   double bound_;
 };
 
+/// One empty list a query (a search of an empty set).
+NeighborLists noHits(const Points& queries) {
+  NeighborLists out;
+  out.offsets.assign(static_cast<std::size_t>(queries.rows()) + 1, 0);
+  return out;
+}
+
+/// FLANN's parameters for an exact search (no check limit, no approximation, results left unsorted).
+flann::SearchParams exactSearch() { return flann::SearchParams(flann::FLANN_CHECKS_UNLIMITED, 0.0f, false); }
+
 /// Stops at the first point other than the excluded one with rounded distance < radius: the bound
 /// then goes negative, which prunes every branch not yet entered.
 class AnyOtherCollector final : public flann::ResultSet<double> {
@@ -386,13 +396,9 @@ NeighborLists NeighborIndex::radiusImpl(const Points& queries, double radius, In
                           std::to_string(radius));
   }
   checkFinite(queries, "query");
-  if (size() == 0) {
-    NeighborLists out;
-    out.offsets.assign(static_cast<std::size_t>(queries.rows()) + 1, 0);
-    return out;
-  }
+  if (size() == 0) return noHits(queries);
   const Tree& tree = *impl_->tree;
-  const flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, false);
+  const flann::SearchParams params = exactSearch();
   return impl_->run(
       queries, [radius] { return RadiusCollector(radius); },
       [&tree, &params, sorted](RadiusCollector& collector, const double* query, std::vector<Hit>& hits) {
@@ -420,14 +426,10 @@ NeighborLists NeighborIndex::nearestWithin(const Points& queries, double radius,
 
 NeighborLists NeighborIndex::knnImpl(const Points& queries, std::size_t k, double bound, Interrupter* interrupter) const {
   checkFinite(queries, "query");
-  if (size() == 0) {
-    NeighborLists out;
-    out.offsets.assign(static_cast<std::size_t>(queries.rows()) + 1, 0);
-    return out;
-  }
+  if (size() == 0) return noHits(queries);
   const Tree& tree = *impl_->tree;
   const std::size_t kept = std::min(k, impl_->size);
-  const flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, false);
+  const flann::SearchParams params = exactSearch();
   return impl_->run(
       queries, [kept, bound] { return KnnCollector(kept, bound); },
       [&tree, &params](KnnCollector& collector, const double* query, std::vector<Hit>& hits) {
@@ -451,13 +453,9 @@ NeighborLists NeighborIndex::anyOtherWithin(const Points& queries, const std::ve
     }
   }
   checkFinite(queries, "query");
-  if (size() == 0) {
-    NeighborLists out;
-    out.offsets.assign(static_cast<std::size_t>(queries.rows()) + 1, 0);
-    return out;
-  }
+  if (size() == 0) return noHits(queries);
   const Tree& tree = *impl_->tree;
-  const flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, false);
+  const flann::SearchParams params = exactSearch();
   const double* first = queries.data();
   return impl_->run(
       queries, [] { return AnyOtherCollector(); },
