@@ -905,6 +905,7 @@ void runConcurrently(const std::vector<std::function<void()>>& tasks) {
     }
   };
   std::vector<std::thread> threads;
+  threads.reserve(tasks.size());  // no reallocation below: only a thread's own start can fail there
   std::size_t here = 0;  // tasks [here, size) run on this thread
   for (; here + 1 < tasks.size(); ++here) {
     try {
