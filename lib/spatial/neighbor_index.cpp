@@ -238,8 +238,9 @@ struct NeighborIndex::Impl {
   std::size_t size = 0;
   std::unique_ptr<Tree> tree;  ///< null for an empty set
 
-  /// Runs searchOne(state, query, hits) for every query in parallel blocks and returns the lists;
-  /// each thread owns a state from makeState(), and searchOne appends one query's sorted hits;
+  /// Runs searchOne(state, i, query, hits) for every query (row i, its coordinates at `query`) in parallel
+  /// blocks and returns the lists; each thread owns a state from makeState(), and searchOne appends one
+  /// query's sorted hits;
   /// `interrupter` can stop it (detail::SearchStop: run then throws Cancelled).
   template <typename MakeState, typename SearchOne>
   NeighborLists run(const Points& queries, MakeState makeState, SearchOne searchOne, Interrupter* interrupter) const;
@@ -299,7 +300,7 @@ NeighborLists NeighborIndex::Impl::run(const Points& queries, MakeState makeStat
         for (std::int64_t s = begin; s < end; ++s) {
           const std::int64_t i = queryAt(s);
           const std::size_t before = hits.size();
-          searchOne(*state, qp + 3 * i, hits);
+          searchOne(*state, static_cast<std::size_t>(i), qp + 3 * i, hits);
           out.offsets[static_cast<std::size_t>(i) + 1] =
               static_cast<std::int64_t>(hits.size() - before);
         }
@@ -401,7 +402,7 @@ NeighborLists NeighborIndex::radiusImpl(const Points& queries, double radius, In
   const flann::SearchParams params = exactSearch();
   return impl_->run(
       queries, [radius] { return RadiusCollector(radius); },
-      [&tree, &params, sorted](RadiusCollector& collector, const double* query, std::vector<Hit>& hits) {
+      [&tree, &params, sorted](RadiusCollector& collector, std::size_t, const double* query, std::vector<Hit>& hits) {
         const std::size_t before = hits.size();
         collector.reset(&hits);
         tree.findNeighbors(collector, query, params);
@@ -432,7 +433,7 @@ NeighborLists NeighborIndex::knnImpl(const Points& queries, std::size_t k, doubl
   const flann::SearchParams params = exactSearch();
   return impl_->run(
       queries, [kept, bound] { return KnnCollector(kept, bound); },
-      [&tree, &params](KnnCollector& collector, const double* query, std::vector<Hit>& hits) {
+      [&tree, &params](KnnCollector& collector, std::size_t, const double* query, std::vector<Hit>& hits) {
         collector.clear();
         tree.findNeighbors(collector, query, params);
         collector.appendSorted(hits);
@@ -456,11 +457,9 @@ NeighborLists NeighborIndex::anyOtherWithin(const Points& queries, const std::ve
   if (size() == 0) return noHits(queries);
   const Tree& tree = *impl_->tree;
   const flann::SearchParams params = exactSearch();
-  const double* first = queries.data();
   return impl_->run(
       queries, [] { return AnyOtherCollector(); },
-      [&](AnyOtherCollector& collector, const double* query, std::vector<Hit>& hits) {
-        const auto i = static_cast<std::size_t>((query - first) / 3);
+      [&](AnyOtherCollector& collector, std::size_t i, const double* query, std::vector<Hit>& hits) {
         if (!(radius[i] > 0.0)) return;  // no distance is below a radius ≤ 0
         collector.reset(exclude[i], radius[i]);
         tree.findNeighbors(collector, query, params);
