@@ -70,6 +70,14 @@ int cmdFit(int argc, char** argv) {
                                                      preconditionerKindName(PreconditionerKind::BlockJacobi),
                                                      preconditionerKindName(PreconditionerKind::Jacobi)}))
       ->type_name("P");
+  app.add_option_function<std::string>(
+         "--assembly", [&fit](const std::string& v) { fit.assembly = parseAssemblyPlace(v); },
+         "where the level matrices are assembled: auto (default: the device when it is a GPU), host or device "
+         "(an OpenCL device with double precision; the same matrices)")
+      ->check(CLI::IsMember(std::vector<std::string>{assemblyPlaceName(AssemblyPlace::Auto),
+                                                     assemblyPlaceName(AssemblyPlace::Host),
+                                                     assemblyPlaceName(AssemblyPlace::Device)}))
+      ->type_name("WHERE");
   addNumber(app, "fsai-threshold", fit.fsaiThreshold,
             "FSAI keeps the couplings |a_ij| >= T sqrt(a_ii a_jj), 0 .. 1 (default 0.2)");
   addNumber(app, "cell", o.surface.cell, "marching grid cell size");

@@ -22,6 +22,13 @@ enum class PreconditionerKind {
   Fsai          ///< factorised sparse approximate inverse on each centre's strongest couplings (default)
 };
 
+/// Where each level's matrix Φ + λI is assembled (docs/method.md §5, "Assembly on the device"). Auto: on the
+/// device when it is an OpenCL GPU or accelerator with double precision (the host's cores are then the
+/// scarce resource), else on the host. Device: on any OpenCL device with double precision (the kernels'
+/// geometry is double; elsewhere the host assembles). Both give the same matrix bit for bit.
+enum class AssemblyPlace { Auto, Host, Device };
+
+
 /// Fit parameters. Every field documents its unit and default; defaults follow docs/method.md.
 struct FitOptions {
   /// Signed offsets δ in input units (or fractions of the bounding box's largest side when offsetsRelative):
@@ -86,6 +93,7 @@ struct FitOptions {
   /// default is 1e-5 (docs/method.md §5).
   double coarseTolerance = 1e-5;
   PreconditionerKind preconditioner = PreconditionerKind::Fsai;
+  AssemblyPlace assembly = AssemblyPlace::Auto;
   int blockSize = 16;  ///< rows per block of the block Jacobi preconditioner
   /// The FSAI factor's pattern: couplings |a_ij| ≥ fsaiThreshold·√(a_ii a_jj) below the diagonal, at most
   /// fsaiMaxNeighbours a row (the strongest). 0.2 keeps about 4 a row on the shared clouds' levels.
@@ -148,6 +156,10 @@ const char* preconditionerKindName(PreconditionerKind kind) noexcept;
 /// The inverse of preconditionerKindName ("block_jacobi" is accepted too).
 /// @throws InvalidArgument naming the text for any other.
 PreconditionerKind parsePreconditionerKind(const std::string& text);
+/// "auto", "host" or "device": the spelling of the CLI's --assembly and the Python option.
+const char* assemblyPlaceName(AssemblyPlace place) noexcept;
+/// The inverse of assemblyPlaceName. @throws InvalidArgument naming the text for any other.
+AssemblyPlace parseAssemblyPlace(const std::string& text);
 
 struct FitReport {
   std::string device;
@@ -158,6 +170,9 @@ struct FitReport {
   /// Distributed fits name the one of their gathered levels and say that the distributed levels use
   /// block Jacobi on each rank's rows.
   std::string preconditioner;
+  /// Where the level matrices were assembled: "host" or "device" (report.json "assembly"); "host and
+  /// device" when some levels fell back to the host (a grid table over its bound).
+  std::string assembly = "host";
   std::size_t inputPoints = 0, duplicatesMerged = 0, zeroNormals = 0;
   std::vector<double> offsets;         ///< δ in input units
   OffSurfaceSide offSurfaceSide = OffSurfaceSide::Outside;  ///< where the off-surface points went

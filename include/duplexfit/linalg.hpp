@@ -17,9 +17,12 @@
 
 namespace duplexfit {
 
+class DeviceCsr;
 namespace detail {
 struct VectorStorage;
 struct CsrStorage;
+/// Internal: a DeviceCsr over storage already filled on the device (the device assembly).
+DeviceCsr adoptCsr(std::unique_ptr<CsrStorage> storage);
 }  // namespace detail
 
 /// A vector of n values of one precision on one device. Move-only; clone() copies explicitly.
@@ -83,6 +86,7 @@ class DeviceCsr {
   detail::CsrStorage& storage() const { return *storage_; }
 
  private:
+  friend DeviceCsr detail::adoptCsr(std::unique_ptr<detail::CsrStorage> storage);
   std::unique_ptr<detail::CsrStorage> storage_;
 };
 

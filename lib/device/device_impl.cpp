@@ -98,6 +98,7 @@ const std::vector<std::pair<std::string, std::vector<std::string>>>& programTabl
       {"field", {"common", "field_point", "eval_field"}},
       {"precond", {"common", "precond"}},
       {"preprocess", {"common", "preprocess"}},
+      {"assemble", {"common", "assemble"}},
   };
   return table;
 }

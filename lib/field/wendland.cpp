@@ -107,9 +107,7 @@ void reserveNonZeros(CsrMatrix& a, const detail::NonZeroCheck& beforeAllocating,
 
 }  // namespace
 
-namespace {
-
-void checkAssemblyArguments(const Points& centres, double sigma, double lambda) {
+void detail::checkAssemblyArguments(const Points& centres, double sigma, double lambda) {
   if (!(sigma > 0.0) || !std::isfinite(sigma)) {
     throw InvalidArgument("assembleWendland: sigma must be positive and finite, got " +
                           std::to_string(sigma));
@@ -124,6 +122,8 @@ void checkAssemblyArguments(const Points& centres, double sigma, double lambda) 
   }
   checkCentres(centres);
 }
+
+namespace {
 
 /// The assembly with the radius searches on a k-d tree of the centres (where the grid is not usable).
 CsrMatrix assembleOnTree(const Points& centres, double sigma, double lambda, const NeighborIndex& index,
@@ -295,7 +295,7 @@ CsrMatrix assembleOnGrid(const Points& centres, double sigma, double lambda, con
 /// The assembly on the grid when its table fits `maxGridCells`, else on a k-d tree.
 CsrMatrix assembleAny(const Points& centres, double sigma, double lambda, const detail::NonZeroCheck& beforeAllocating,
                       Interrupter* interrupter, std::size_t maxGridCells, CsrMatrix* storage) {
-  checkAssemblyArguments(centres, sigma, lambda);
+  detail::checkAssemblyArguments(centres, sigma, lambda);
   const detail::CellGrid grid(centres, sigma, maxGridCells);
   if (grid.usable()) return assembleOnGrid(centres, sigma, lambda, grid, beforeAllocating, interrupter, storage);
   const NeighborIndex index(centres);

@@ -111,7 +111,7 @@ std::string detail::preconditionerName(const FitOptions& options) {
 
 SolveStats detail::solveLevelSystem(const Device& device, const CsrMatrix& a, const Eigen::VectorXd& b,
                                     const FitOptions& options, bool finest, Eigen::VectorXd& weights,
-                                    Interrupter* monitor, DeviceCsr* buffers) {
+                                    Interrupter* monitor, DeviceCsr* buffers, DeviceCsr* assembled) {
   if (b.size() == 0) {
     weights.resize(0);
     SolveStats none;
@@ -119,8 +119,9 @@ SolveStats detail::solveLevelSystem(const Device& device, const CsrMatrix& a, co
     none.reason = StopReason::Converged;
     return none;
   }
-  DeviceCsr m = buffers != nullptr ? DeviceCsr::upload(device, a, options.precision, std::move(*buffers))
-                                   : DeviceCsr::upload(device, a, options.precision);
+  DeviceCsr m = assembled != nullptr ? std::move(*assembled)
+                : buffers != nullptr  ? DeviceCsr::upload(device, a, options.precision, std::move(*buffers))
+                                      : DeviceCsr::upload(device, a, options.precision);
   const DeviceVector db = DeviceVector::upload(device, b, options.precision);
   DeviceVector x(device, static_cast<std::size_t>(b.size()), options.precision);
   std::unique_ptr<Preconditioner> pre;
@@ -168,6 +169,16 @@ SolveStats detail::solveLevelSystem(const Device& device, const CsrMatrix& a, co
   return stats;
 }
 
+bool detail::assemblesOnDevice(const Device& device, const FitOptions& options) {
+  if (!deviceAssemblyAvailable(device)) return false;
+  switch (options.assembly) {
+    case AssemblyPlace::Host: return false;
+    case AssemblyPlace::Device: return true;
+    case AssemblyPlace::Auto: return device.info().type != DeviceType::Cpu;
+  }
+  return false;
+}
+
 namespace {
 
 // A level's report plus its solved weights (moved into the field).
@@ -189,6 +200,22 @@ const char* preconditionerKindName(PreconditionerKind kind) noexcept {
     case PreconditionerKind::Jacobi: return "jacobi";
   }
   return "fsai";
+}
+
+const char* assemblyPlaceName(AssemblyPlace place) noexcept {
+  switch (place) {
+    case AssemblyPlace::Auto: return "auto";
+    case AssemblyPlace::Host: return "host";
+    case AssemblyPlace::Device: return "device";
+  }
+  return "auto";
+}
+
+AssemblyPlace parseAssemblyPlace(const std::string& text) {
+  if (text == "auto") return AssemblyPlace::Auto;
+  if (text == "host") return AssemblyPlace::Host;
+  if (text == "device") return AssemblyPlace::Device;
+  throw InvalidArgument("assembly: '" + text + "' is none of 'auto', 'host' and 'device'");
 }
 
 PreconditionerKind parsePreconditionerKind(const std::string& text) {
@@ -333,6 +360,10 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   // fandisk_550k 42.4M after 43.2M), so that its pages are not paid for again.
   CsrMatrix levelMatrix;
   DeviceCsr levelBuffers;
+  // The level matrices on the device (FitOptions::assembly); a level whose grid table would be too large
+  // is assembled on the host and uploaded.
+  const bool assembleOnDevice = detail::assemblesOnDevice(device, options);
+  int levelsOnDevice = 0, levelsOnHost = 0;
   // Assembles Φ + λI for `centres`, solves it by PCG on the device from b, fills the level report (non-zeros,
   // solve statistics, times) and leaves the weights in lr.weights; returns the matrix.
   auto solveLevel = [&](const Points& centres, double sigma, double lambda, const Eigen::VectorXd& b, int k,
@@ -347,8 +378,21 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
       requireMemory(options.limits, "fit", estimateLevelBytes(static_cast<std::size_t>(centres.rows()), nonZeros, options),
                     what.str(), "fit a sparser cloud (or fewer --sample-points of a mesh input), or fewer offsets");
     };
-    CsrMatrix a = detail::assembleWendland(centres, sigma, lambda, budget, interrupter,
-                                           detail::CellGrid::kDefaultMaxCells, &levelMatrix);
+    CsrMatrix a;
+    DeviceCsr assembled;
+    bool onDevice = false;
+    if (assembleOnDevice) {
+      detail::DeviceAssembly da = detail::assembleOnDevice(device, options.precision, centres, sigma, lambda, budget,
+                                                           interrupter, detail::CellGrid::kDefaultMaxCells,
+                                                           &levelMatrix, &levelBuffers);
+      a = std::move(da.host);
+      assembled = std::move(da.device);
+      onDevice = da.onDevice;
+    } else {
+      a = detail::assembleWendland(centres, sigma, lambda, budget, interrupter, detail::CellGrid::kDefaultMaxCells,
+                                   &levelMatrix);
+    }
+    (onDevice ? levelsOnDevice : levelsOnHost) += 1;
     lr.nonZeros = a.nonZeros();
     lr.secondsAssembly = secondsSince(t0);
 
@@ -359,7 +403,8 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
       levelInterrupter = std::make_unique<LevelInterrupter>(*interrupter, k, levels, work,
                                                             detail::levelSolverOptions(options, k >= levels).relativeTolerance);
     }
-    lr.solve = detail::solveLevelSystem(device, a, b, options, k >= levels, lr.weights, levelInterrupter.get(), &levelBuffers);
+    lr.solve = detail::solveLevelSystem(device, a, b, options, k >= levels, lr.weights, levelInterrupter.get(),
+                                        &levelBuffers, assembleOnDevice ? &assembled : nullptr);
     if (lr.solve.reason == StopReason::Cancelled) throw Cancelled("fit cancelled during the level " + std::to_string(k) + " solve");
     lr.secondsSolve = secondsSince(t0);
     return a;
@@ -575,6 +620,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     rep.e0 = std::max(rep.e0, f0.cwiseAbs().maxCoeff());
   }
   if (rep.eDelta.size() != deltas.size()) rep.eDelta.assign(deltas.size(), 0.0);  // stopped early
+  rep.assembly = levelsOnDevice == 0 ? "host" : levelsOnHost == 0 ? "device" : "host and device";
   rep.secondsTotal = secondsSince(start);
   return FitResult{std::move(field), std::move(rep), std::move(evaluator)};
 }

@@ -126,9 +126,13 @@ std::string preconditionerName(const FitOptions& options);
 /// options.precision, the preconditioner of options, PCG with levelSolverOptions. An empty b is a
 /// converged solve with no weights. `monitor` (if not null) gets the solver's events. With `buffers`, A goes
 /// into the device buffers held there where they are large enough (DeviceCsr::upload), and the uploaded A
-/// is left there for the next level.
+/// is left there for the next level. With `assembled` (A on the device already, its host copy `a`: the device
+/// assembly), that matrix is solved instead of an upload of `a`, and left in `buffers` likewise.
 SolveStats solveLevelSystem(const Device& device, const CsrMatrix& a, const Eigen::VectorXd& b, const FitOptions& options,
                             bool finest, Eigen::VectorXd& weights, Interrupter* monitor = nullptr,
-                            DeviceCsr* buffers = nullptr);
+                            DeviceCsr* buffers = nullptr, DeviceCsr* assembled = nullptr);
+
+/// Whether a fit under `options` assembles its level matrices on `device` (FitOptions::assembly).
+bool assemblesOnDevice(const Device& device, const FitOptions& options);
 
 }  // namespace duplexfit::detail

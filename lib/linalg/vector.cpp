@@ -167,6 +167,12 @@ DeviceCsr::DeviceCsr(DeviceCsr&&) noexcept = default;
 DeviceCsr& DeviceCsr::operator=(DeviceCsr&&) noexcept = default;
 DeviceCsr::~DeviceCsr() = default;
 
+DeviceCsr detail::adoptCsr(std::unique_ptr<CsrStorage> storage) {
+  DeviceCsr m;
+  m.storage_ = std::move(storage);
+  return m;
+}
+
 DeviceCsr DeviceCsr::upload(const Device& device, const CsrMatrix& a, Precision precision) {
   return upload(device, a, precision, DeviceCsr{});
 }

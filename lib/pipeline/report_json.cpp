@@ -33,6 +33,7 @@ void addFitReport(Json& w, const FitReport& rep) {
   w["device_tuning"] = rep.deviceTuning;
   w["precision"] = rep.precision;
   w["preconditioner"] = rep.preconditioner;
+  w["assembly"] = rep.assembly;
   w["offsets"] = rep.offsets;
   w["off_surface_side"] = offSurfaceSideName(rep.offSurfaceSide);
   w["sigma0"] = rep.sigma0;

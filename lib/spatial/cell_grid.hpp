@@ -32,13 +32,30 @@ class CellGrid {
   bool usable() const noexcept { return usable_; }
   std::size_t size() const noexcept { return id_.size(); }
 
+  /// The table as within() reads it (the device assembly uploads it): the box's low corner, 1/cell, the
+  /// cells per axis, per cell (x fastest) its first sorted point with one more entry at the end, the
+  /// sorted points (x y z each) and their input rows.
+  const double* origin() const noexcept { return lo_; }
+  double inverseCell() const noexcept { return inv_; }
+  const int* cellsPerAxis() const noexcept { return n_; }
+  const std::vector<std::uint32_t>& cellStarts() const noexcept { return start_; }
+  const std::vector<double>& sortedPoints() const noexcept { return xyz_; }
+  const std::vector<Index>& sortedIds() const noexcept { return id_; }
+
+  /// The widened reach and the squared-distance bound within() uses for `radius` (shared with the device
+  /// assembly, which repeats its arithmetic).
+  static double reachFor(double radius) noexcept { return radius * (1.0 + 1e-6); }
+  static double boundFor(double radius) noexcept {
+    return std::nextafter(radius * radius * (1.0 + 1e-9), std::numeric_limits<double>::infinity());
+  }
+
   /// Calls visit(index, distance) for every point whose distance from q is < radius, in cell order.
   template <typename Visit>
   void within(const double* q, double radius, Visit&& visit) const {
     if (!usable_ || id_.empty()) return;
     // The cells that [q − r, q + r] meets, with r widened a little so that no rounding of q ± r can drop
     // a cell holding a point whose rounded distance is below the radius (every point is tested below).
-    const double reach = radius * (1.0 + 1e-6);
+    const double reach = reachFor(radius);
     int from[3], to[3];
     for (int a = 0; a < 3; ++a) {
       const double lo = (q[a] - reach - lo_[a]) * inv_, hi = (q[a] + reach - lo_[a]) * inv_;
@@ -46,7 +63,7 @@ class CellGrid {
       from[a] = lo <= 0.0 ? 0 : static_cast<int>(lo);
       to[a] = hi >= static_cast<double>(n_[a] - 1) ? n_[a] - 1 : static_cast<int>(hi);
     }
-    const double bound = std::nextafter(radius * radius * (1.0 + 1e-9), std::numeric_limits<double>::infinity());
+    const double bound = boundFor(radius);
     const auto nx = static_cast<std::size_t>(n_[0]), ny = static_cast<std::size_t>(n_[1]);
     for (int iz = from[2]; iz <= to[2]; ++iz) {
       for (int iy = from[1]; iy <= to[1]; ++iy) {

@@ -67,7 +67,7 @@ def fit(points, normals, offsets=(), *, device=None, progress=None, levels=None,
         medial_constraints=_D["medial_constraints"], offset_correction=_D["offset_correction"],
         drop_zero_normal_points=_D["drop_zero_normal_points"], precision=_D["precision"],
         preconditioner=_D["preconditioner"], fsai_threshold=_D["fsai_threshold"],
-        level_tolerance=_D["level_tolerance"],
+        assembly=_D["assembly"], level_tolerance=_D["level_tolerance"],
         coarse_tolerance=_D["coarse_tolerance"], max_iterations=_D["max_iterations"],
         relative_tolerance=_D["relative_tolerance"], merge_duplicates=True):
     """Fits the field to an oriented cloud and returns a duplexfit.Field.
@@ -81,6 +81,8 @@ def fit(points, normals, offsets=(), *, device=None, progress=None, levels=None,
     progress: None or callable(stage, fraction, message); return False to cancel.
     levels: number of levels M (None: from the cloud). precision: "float" or "double".
     preconditioner: "fsai" (default), "block-jacobi" or "jacobi"; fsai_threshold: FSAI's coupling threshold.
+    assembly: where the level matrices are assembled, "auto" (default: the device when it is a GPU), "host"
+        or "device" (an OpenCL device with double precision); the same matrices either way.
     The other keywords are the library's FitOptions (docs/method.md), with its defaults; smoothing > 0
     approximates noisy data instead of interpolating. merge_duplicates: merge points with identical
     positions first (their normals averaged).

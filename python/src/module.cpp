@@ -171,6 +171,7 @@ py::dict fitReportDict(const FitReport& r) {
   d["device_tuning"] = r.deviceTuning;
   d["precision"] = r.precision;
   d["preconditioner"] = r.preconditioner;
+  d["assembly"] = r.assembly;
   d["input_points"] = r.inputPoints;
   d["duplicates_merged"] = r.duplicatesMerged;
   d["zero_normals"] = r.zeroNormals;
@@ -246,6 +247,9 @@ void readFitOptions(OptionReader& r, FitOptions& o) {
   std::string preconditioner = preconditionerKindName(o.preconditioner);
   r.get("preconditioner", preconditioner);
   o.preconditioner = parsePreconditionerKind(preconditioner);
+  std::string assembly = assemblyPlaceName(o.assembly);
+  r.get("assembly", assembly);
+  o.assembly = parseAssemblyPlace(assembly);
   r.get("fsai_threshold", o.fsaiThreshold);
 }
 
@@ -270,6 +274,7 @@ py::dict fitDefaults() {
   d["relative_tolerance"] = o.solver.relativeTolerance;
   d["precision"] = precisionName(o.precision);
   d["preconditioner"] = preconditionerKindName(o.preconditioner);
+  d["assembly"] = assemblyPlaceName(o.assembly);
   d["fsai_threshold"] = o.fsaiThreshold;
   return d;
 }

@@ -73,6 +73,17 @@ class SphereFit(unittest.TestCase):
         self.assertEqual(field.report["preconditioner"], "block-jacobi-16")
         self.assertTrue(field.report["converged"])
 
+    def test_assembly_on_the_device_on_request(self):
+        host = duplexfit.fit(self.points, self.normals, [DELTA], assembly="host", levels=3)
+        self.assertEqual(host.report["assembly"], "host")
+        device = duplexfit.fit(self.points, self.normals, [DELTA], assembly="device", levels=3)
+        # The device assembles where it has double precision (the reference device never does); the same
+        # matrices either way, so the same field.
+        self.assertIn(device.report["assembly"], ("host", "device"))
+        np.testing.assert_array_equal(host.value(self.points), device.value(self.points))
+        with self.assertRaisesRegex(duplexfit.InvalidArgument, "assembly"):
+            duplexfit.fit(self.points, self.normals, assembly="gpu")
+
     def test_zero_level_at_the_sphere(self):
         # New points on the sphere, not the fitted ones.
         f = self.field.value(RADIUS * self.directions)

@@ -14,8 +14,12 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/neighbors.hpp"
 #include "duplexfit/wendland.hpp"
+#include "device/device_impl.hpp"
+#include "duplexfit/linalg.hpp"
 #include "field/wendland_detail.hpp"
+#include "linalg/storage.hpp"
 #include "shapes.hpp"
+#include "test_device.hpp"
 
 namespace {
 
@@ -142,6 +146,99 @@ TEST_SUITE("field") {
     // The far-away centre is alone in its row; the table then spans it (some 200k cells, usable).
     CHECK(duplexfit::detail::CellGrid(centres, sigma).usable());
     CHECK_FALSE(duplexfit::detail::CellGrid(centres, sigma, 1000).usable());
+  }
+
+  TEST_CASE("wendland: the assembly on the device gives the host's matrix bit for bit") {
+    DUPLEXFIT_OPENCL_DEVICE(dev);
+    if (!duplexfit::detail::deviceAssemblyAvailable(dev)) DUPLEXFIT_SKIP("the OpenCL device has no double precision");
+    // The grid-against-tree centres (duplicates, centres on cell boundaries, a far-away one) at two supports:
+    // about 30 entries a row, and over 100 (beyond the host's insertion-sort cut-off).
+    Points centres = duplexfit::testing::fibonacciSphere(3000, 0.5);
+    const Eigen::Index base = centres.rows();
+    centres.conservativeResize(base + 40, 3);
+    for (Eigen::Index i = 0; i < 20; ++i) centres.row(base + i) = centres.row(7 * i);
+    for (Eigen::Index i = 20; i < 39; ++i) {
+      centres.row(base + i) << 0.12 * static_cast<double>(i % 5 - 2), 0.12 * static_cast<double>(i % 3 - 1), 0.38;
+    }
+    centres.row(base + 39) << 40.0, -3.0, 2.0;
+    const auto deviceArrays = [&dev](const duplexfit::DeviceCsr& m, std::vector<Index>& rowPtr, std::vector<Index>& col,
+                                     std::vector<double>& val) {
+      const duplexfit::detail::CsrStorage& st = m.storage();
+      auto& queue = dev.impl()->queue();
+      rowPtr.resize(st.rows + 1);
+      col.resize(st.nnz);
+      REQUIRE(queue.enqueueReadBuffer(st.rowPtrBuf, CL_TRUE, 0, rowPtr.size() * sizeof(Index), rowPtr.data()) == CL_SUCCESS);
+      REQUIRE(queue.enqueueReadBuffer(st.colBuf, CL_TRUE, 0, col.size() * sizeof(Index), col.data()) == CL_SUCCESS);
+      if (m.precision() == duplexfit::Precision::Double) {
+        val.resize(st.nnz);
+        REQUIRE(queue.enqueueReadBuffer(st.valBuf, CL_TRUE, 0, val.size() * sizeof(double), val.data()) == CL_SUCCESS);
+      } else {
+        std::vector<float> f(st.nnz);
+        REQUIRE(queue.enqueueReadBuffer(st.valBuf, CL_TRUE, 0, f.size() * sizeof(float), f.data()) == CL_SUCCESS);
+        val.assign(f.begin(), f.end());
+      }
+    };
+    std::size_t nnzChecked = 0;
+    for (const double sigma : {0.12, 0.25}) {
+      for (const duplexfit::Precision precision : {duplexfit::Precision::Float, duplexfit::Precision::Double}) {
+        CAPTURE(sigma);
+        CAPTURE(duplexfit::precisionName(precision));
+        const CsrMatrix expected = duplexfit::assembleWendland(centres, sigma, 0.3);
+        std::size_t budgetAsked = 0;
+        duplexfit::detail::DeviceAssembly got = duplexfit::detail::assembleOnDevice(
+            dev, precision, centres, sigma, 0.3, [&budgetAsked](std::size_t nz) { budgetAsked = nz; });
+        REQUIRE(got.onDevice);
+        CHECK(budgetAsked == expected.nonZeros());  // the exact count, before the matrix's buffers exist
+        CHECK(got.host.rows == expected.rows);
+        CHECK(got.host.rowPtr == expected.rowPtr);
+        CHECK(got.host.colIdx == expected.colIdx);
+        CHECK(got.host.values == expected.values);
+        CHECK(got.device.rows() == static_cast<std::size_t>(expected.rows));
+        CHECK(got.device.precision() == precision);
+        CHECK(got.device.diagonal() == expected.diagonal());
+        std::vector<Index> rowPtr, col;
+        std::vector<double> val;
+        deviceArrays(got.device, rowPtr, col, val);
+        CHECK(rowPtr == expected.rowPtr);
+        CHECK(col == expected.colIdx);
+        // As an upload rounds the host's values.
+        const duplexfit::DeviceCsr uploaded = duplexfit::DeviceCsr::upload(dev, expected, precision);
+        std::vector<Index> upRowPtr, upCol;
+        std::vector<double> upVal;
+        deviceArrays(uploaded, upRowPtr, upCol, upVal);
+        CHECK(val == upVal);
+        nnzChecked += expected.nonZeros();
+      }
+    }
+    CHECK(nnzChecked > 4 * 60 * 3000);
+    // Into the arrays and buffers of an earlier level: the same matrix, the earlier one left empty.
+    duplexfit::detail::DeviceAssembly held =
+        duplexfit::detail::assembleOnDevice(dev, duplexfit::Precision::Float, centres, 0.25, 0.0, {});
+    duplexfit::detail::DeviceAssembly again = duplexfit::detail::assembleOnDevice(
+        dev, duplexfit::Precision::Float, centres, 0.12, 0.3, {}, nullptr, duplexfit::detail::CellGrid::kDefaultMaxCells,
+        &held.host, &held.device);
+    CHECK(held.host.nonZeros() == 0);
+    CHECK(held.device.rows() == 0);
+    CHECK(again.host.values == duplexfit::assembleWendland(centres, 0.12, 0.3).values);
+    // Where the grid's table is too large, the host assembles and uploads: the same matrix.
+    const duplexfit::detail::DeviceAssembly tree =
+        duplexfit::detail::assembleOnDevice(dev, duplexfit::Precision::Float, centres, 0.12, 0.3, {}, nullptr, 1000);
+    CHECK_FALSE(tree.onDevice);
+    CHECK(tree.host.values == again.host.values);
+    // The reference device has no kernels: its assembly is the host's.
+    const duplexfit::detail::DeviceAssembly ref = duplexfit::detail::assembleOnDevice(
+        duplexfit::Device::reference(), duplexfit::Precision::Float, centres, 0.12, 0.3, {});
+    CHECK_FALSE(ref.onDevice);
+    CHECK(ref.host.values == again.host.values);
+    // A budget that refuses the count stops before the matrix's buffers exist.
+    CHECK_THROWS_AS(duplexfit::detail::assembleOnDevice(dev, duplexfit::Precision::Float, centres, 0.12, 0.3,
+                                                        [](std::size_t) { throw std::runtime_error("over budget"); }),
+                    std::runtime_error);
+    // Bad centres are named.
+    Points bad = centres;
+    bad(17, 1) = std::nan("");
+    CHECK_THROWS_WITH_AS(duplexfit::detail::assembleOnDevice(dev, duplexfit::Precision::Float, bad, 0.12, 0.3, {}),
+                         doctest::Contains("row 17"), InvalidArgument);
   }
 
   TEST_CASE("wendland: assembly equals a dense brute-force build on sphere level centres") {

@@ -3,6 +3,7 @@
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <string>
 
 #include "support/recording_interrupter.hpp"
 #include "duplexfit/error.hpp"
@@ -194,6 +195,36 @@ TEST_SUITE("fit") {
     CHECK(rmax <= 1e-10);
     CHECK(s.maxResidual == doctest::Approx(rmax).epsilon(1e-6));
     CHECK(s.iterations > alone.iterations);
+  }
+
+  TEST_CASE("fit: level matrices assembled on the device give the host's field bit for bit") {
+    CHECK(parseAssemblyPlace("device") == AssemblyPlace::Device);
+    CHECK(std::string(assemblyPlaceName(AssemblyPlace::Auto)) == "auto");
+    CHECK_THROWS_WITH_AS(parseAssemblyPlace("gpu"), doctest::Contains("'gpu'"), InvalidArgument);
+    const PointSet cloud = sphereCloud(3000, 0.5);
+    FitOptions options;
+    options.offsets = {0.1};
+    // The reference device has no kernels: asked for the device, it assembles on the host.
+    options.assembly = AssemblyPlace::Device;
+    CHECK(fit(Device::reference(), cloud, options).report.assembly == "host");
+    DUPLEXFIT_OPENCL_DEVICE(dev);
+    if (!dev.supportsDouble()) DUPLEXFIT_SKIP("the OpenCL device has no double precision");
+    // Auto: on a CPU device the host's cores assemble (faster there, docs/benchmarks.md).
+    CHECK(detail::assemblesOnDevice(dev, FitOptions{}) == (dev.info().type != DeviceType::Cpu));
+    options.assembly = AssemblyPlace::Host;
+    const FitResult host = fit(dev, cloud, options);
+    options.assembly = AssemblyPlace::Device;
+    const FitResult device = fit(dev, cloud, options);
+    CHECK(host.report.assembly == "host");
+    CHECK(device.report.assembly == "device");
+    REQUIRE(host.field.levels().size() == device.field.levels().size());
+    for (std::size_t k = 0; k < host.field.levels().size(); ++k) {
+      CAPTURE(k);
+      CHECK(host.report.levelReports[k].nonZeros == device.report.levelReports[k].nonZeros);
+      CHECK(host.report.levelReports[k].solve.iterations == device.report.levelReports[k].solve.iterations);
+      CHECK(host.field.levels()[k].weights == device.field.levels()[k].weights);
+    }
+    CHECK(host.report.e0 == device.report.e0);
   }
 
   TEST_CASE("fit: bad input and options are clear errors") {
