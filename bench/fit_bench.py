@@ -16,7 +16,9 @@ Without open3d/pyopenvdb (or with --no-peer) only ours runs and the peer columns
 
 usage: bench/fit_bench.py [--duplexfit build/cli/duplexfit] [--data ../shared/data] [--device SPEC ...]
                           [--clouds fandisk_8k,igea_72k,...] [--offset 0.025] [--repeat 1] [--no-peer]
-                          [--json FILE]
+                          [--json FILE] [--fit-arg=ARG ...]
+--fit-arg passes ARG on to every `duplexfit fit` (repeatable, e.g. --fit-arg=--assembly --fit-arg=host for
+the host assembly on a GPU); the stage table says where the level matrices were assembled.
 The tables (markdown) go to stdout, progress to stderr.
 """
 import argparse
@@ -60,6 +62,7 @@ def run_ours(args, path, device):
     """One `duplexfit fit` run: (wall seconds, report.json)."""
     with tempfile.TemporaryDirectory() as out:
         cmd = [args.duplexfit, "fit", path, "--offset", repr(args.offset), "--device", device, "-o", out, "--quiet"]
+        cmd += args.fit_arg
         log("running: " + " ".join(cmd))
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
@@ -124,6 +127,8 @@ def main():
     p.add_argument("--repeat", type=int, default=1, help="runs of each side per cloud, alternated; minimum kept")
     p.add_argument("--no-peer", action="store_true", help="skip the two-step peer")
     p.add_argument("--json", metavar="FILE", help="write all figures to this JSON file")
+    p.add_argument("--fit-arg", action="append", default=[], metavar="ARG",
+                   help="an argument for every duplexfit fit run (repeatable; write --fit-arg=--option)")
     args = p.parse_args()
     if args.repeat < 1:
         p.error("--repeat must be at least 1")
@@ -199,9 +204,10 @@ def main():
             wall_min = min(o["wall"])
             ratio = wall_min / peer_min if peer_min else None
             peer_cell = "%.2f" % peer_min if peer_min else "skipped" if peer_skipped else "error"
-            print("| %s | %s | %d | %d | %s | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %s | %.1e | %.1e | %.0f "
+            print("| %s | %s | %d | %d | %s | %.2f | %.2f | %s | %.2f | %.2f | %.2f | %s | %.1e | %.1e | %.0f "
                   "| %s | %s | %.2f | %s | %s |" % (
-                      device, cloud, r["points"], r["levels"], kept, s["constraints"], s["residual"], s["assembly"],
+                      device, cloud, r["points"], r["levels"], kept, s["constraints"], s["residual"],
+                      "%.2f (%s)" % (s["assembly"], r.get("assembly", "host")),
                       s["solve"], r["seconds"]["polygonize"], r["seconds"]["total"], " ".join(map(str, its)), r["E0"],
                       max(r["Edelta"]) if r["Edelta"] else 0.0, r["peak_rss_mib"],
                       "%.1f" % paper[3] if paper else "-", "%.1f" % paper[4] if paper else "-",
