@@ -35,62 +35,31 @@ inline int assemble_cell_range(const double qx, const double qy, const double qz
   return 1;
 }
 
-/* Pass 1: the number of entries of each row. */
-__kernel void assemble_count(const uint n, __global const double* q, __global const double* xyz,
-                             __global const uint* starts, __global const double* geom,
-                             __global const int* dims, __global uint* count) {
-  const uint i = get_global_id(0);
-  if (i >= n) return;
-  const double qx = q[3 * (ulong)i], qy = q[3 * (ulong)i + 1], qz = q[3 * (ulong)i + 2];
+/* Row i's entries (centres within σ of q, with their rounded distances). With col null they are only
+ * counted; else they are also inserted, in ascending column order as they are found (rows have tens of
+ * entries), into col and valD from `first` (at most `last`). Returns the count. */
+inline uint assemble_row(const double qx, const double qy, const double qz, __global const double* xyz,
+                         __global const uint* starts, __global const int* ids, __global const double* geom,
+                         __global const int* dims, __global int* col, __global double* valD, const ulong first,
+                         const ulong last) {
   const double radius = geom[4], bound = geom[6];
   int from[3], to[3];
   uint hits = 0;
-  if (assemble_cell_range(qx, qy, qz, geom, dims, from, to)) {
-    const ulong nx = (ulong)dims[0], ny = (ulong)dims[1];
-    for (int iz = from[2]; iz <= to[2]; ++iz) {
-      for (int iy = from[1]; iy <= to[1]; ++iy) {
-        const ulong row = ((ulong)iz * ny + (ulong)iy) * nx;
-        const uint b = starts[row + (ulong)from[0]], e = starts[row + (ulong)to[0] + 1];
-        for (uint k = b; k < e; ++k) {
-          const double dx = qx - xyz[3 * (ulong)k], dy = qy - xyz[3 * (ulong)k + 1], dz = qz - xyz[3 * (ulong)k + 2];
-          const double squared = dx * dx + dy * dy + dz * dz;
-          if (!(squared < bound)) continue;
-          if (sqrt(squared) < radius) ++hits;
-        }
-      }
-    }
-  }
-  count[i] = hits;
-}
-
-/* Pass 2: row i's columns (ascending) and values from rowPtr[i]. The distances go into valD first, are
- * sorted with their columns (insertion sort: rows have tens of entries), then become φ(d/σ) in place.
- * With writeReal, the values are also written rounded to REAL into val (float systems). */
-__kernel void assemble_fill(const uint n, __global const double* q, __global const double* xyz,
-                            __global const uint* starts, __global const int* ids, __global const double* geom,
-                            __global const int* dims, __global const int* rowPtr, const double sigma,
-                            const double diagonal, const uint writeReal, __global int* col,
-                            __global double* valD, __global real* val) {
-  const uint i = get_global_id(0);
-  if (i >= n) return;
-  const double qx = q[3 * (ulong)i], qy = q[3 * (ulong)i + 1], qz = q[3 * (ulong)i + 2];
-  const double radius = geom[4], bound = geom[6];
-  const ulong first = (ulong)(uint)rowPtr[i], last = (ulong)(uint)rowPtr[i + 1];
-  ulong out = first;
-  int from[3], to[3];
-  if (assemble_cell_range(qx, qy, qz, geom, dims, from, to)) {
-    const ulong nx = (ulong)dims[0], ny = (ulong)dims[1];
-    for (int iz = from[2]; iz <= to[2]; ++iz) {
-      for (int iy = from[1]; iy <= to[1]; ++iy) {
-        const ulong row = ((ulong)iz * ny + (ulong)iy) * nx;
-        const uint b = starts[row + (ulong)from[0]], e = starts[row + (ulong)to[0] + 1];
-        for (uint k = b; k < e && out < last; ++k) {
-          const double dx = qx - xyz[3 * (ulong)k], dy = qy - xyz[3 * (ulong)k + 1], dz = qz - xyz[3 * (ulong)k + 2];
-          const double squared = dx * dx + dy * dy + dz * dz;
-          if (!(squared < bound)) continue;
-          const double d = sqrt(squared);
-          if (!(d < radius)) continue;
-          /* insertion into the sorted prefix [first, out) */
+  if (!assemble_cell_range(qx, qy, qz, geom, dims, from, to)) return 0;
+  const ulong nx = (ulong)dims[0], ny = (ulong)dims[1];
+  for (int iz = from[2]; iz <= to[2]; ++iz) {
+    for (int iy = from[1]; iy <= to[1]; ++iy) {
+      const ulong row = ((ulong)iz * ny + (ulong)iy) * nx;
+      const uint b = starts[row + (ulong)from[0]], e = starts[row + (ulong)to[0] + 1];
+      for (uint k = b; k < e; ++k) {
+        const double dx = qx - xyz[3 * (ulong)k], dy = qy - xyz[3 * (ulong)k + 1], dz = qz - xyz[3 * (ulong)k + 2];
+        const double squared = dx * dx + dy * dy + dz * dz;
+        if (!(squared < bound)) continue;
+        const double d = sqrt(squared);
+        if (!(d < radius)) continue;
+        if (col) {
+          const ulong out = first + hits;
+          if (out >= last) return hits;
           const int c = ids[k];
           ulong j = out;
           for (; j > first && c < col[j - 1]; --j) {
@@ -99,11 +68,37 @@ __kernel void assemble_fill(const uint n, __global const double* q, __global con
           }
           col[j] = c;
           valD[j] = d;
-          ++out;
         }
+        ++hits;
       }
     }
   }
+  return hits;
+}
+
+/* Pass 1: the number of entries of each row. */
+__kernel void assemble_count(const uint n, __global const double* q, __global const double* xyz,
+                             __global const uint* starts, __global const int* ids, __global const double* geom,
+                             __global const int* dims, __global uint* count) {
+  const uint i = get_global_id(0);
+  if (i >= n) return;
+  count[i] = assemble_row(q[3 * (ulong)i], q[3 * (ulong)i + 1], q[3 * (ulong)i + 2], xyz, starts, ids, geom, dims,
+                          (__global int*)0, (__global double*)0, 0, 0);
+}
+
+/* Pass 2: row i's columns (ascending) and values from rowPtr[i]: the distances sorted with their columns,
+ * then φ(d/σ) in place, 1 + λ on the diagonal. With writeReal, the values are also written rounded to REAL
+ * into val (float systems). */
+__kernel void assemble_fill(const uint n, __global const double* q, __global const double* xyz,
+                            __global const uint* starts, __global const int* ids, __global const double* geom,
+                            __global const int* dims, __global const int* rowPtr, const double sigma,
+                            const double diagonal, const uint writeReal, __global int* col,
+                            __global double* valD, __global real* val) {
+  const uint i = get_global_id(0);
+  if (i >= n) return;
+  const ulong first = (ulong)(uint)rowPtr[i], last = (ulong)(uint)rowPtr[i + 1];
+  assemble_row(q[3 * (ulong)i], q[3 * (ulong)i + 1], q[3 * (ulong)i + 2], xyz, starts, ids, geom, dims, col, valD,
+               first, last);
   for (ulong e = first; e < last; ++e) {
     double v = diagonal;
     if (col[e] != (int)i) {

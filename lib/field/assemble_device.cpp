@@ -104,7 +104,7 @@ DeviceAssembly assembleOnDevice(const Device& device, Precision precision, const
     const char* name = "assemble_count";
     const std::lock_guard<std::mutex> lock(impl.launchMutex());
     cl::Kernel& k = impl.kernel("assemble", precision, name);
-    setArgs(k, name, rows, qBuf, xyzBuf, startBuf, geomBuf, dimsBuf, countBuf);
+    setArgs(k, name, rows, qBuf, xyzBuf, startBuf, idBuf, geomBuf, dimsBuf, countBuf);
     impl.launch(k, n, impl.params().workGroup, name);
   }
   std::vector<std::uint32_t> count(n);
