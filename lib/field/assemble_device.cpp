@@ -122,8 +122,12 @@ DeviceAssembly assembleOnDevice(const Device& device, Precision precision, const
     a.rowPtr[i + 1] = static_cast<Index>(total);
   }
   const auto nnz = static_cast<std::size_t>(total);
+  if (static_cast<std::uint64_t>(nnz) * sizeof(double) > device.maxAllocBytes()) {
+    // The double values would exceed one buffer where the system's own values may not (float): the host
+    // assembles and uploads, as it would have without the device assembly.
+    return onHost(device, precision, centres, sigma, lambda, beforeAllocating, interrupter, maxGridCells, &a, nullptr);
+  }
   if (beforeAllocating) beforeAllocating(nnz);
-  device.checkAllocation(nnz * sizeof(double), "the values of " + what);
   const cl::Buffer rowPtrBuf = uploadArray(device, a.rowPtr.data(), n + 1, "the row pointers of " + what);
   const cl::Buffer colBuf = createBuffer(device, std::max<std::size_t>(nnz, 1) * sizeof(Index), "the column indices of " + what);
   const cl::Buffer valDBuf = createBuffer(device, std::max<std::size_t>(nnz, 1) * sizeof(double), "the values of " + what);

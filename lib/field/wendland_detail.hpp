@@ -37,9 +37,9 @@ bool deviceAssemblyAvailable(const Device& device);
 /// for the solve, and `host` is its copy in double (the FSAI set-up and the mixed-precision refinement read
 /// it): the same matrix as assembleWendland gives, bit for bit, and rounded to `precision` as an upload
 /// rounds it. The centres' grid (σ cells) is built on the host; `beforeAllocating` gets the exact non-zero
-/// count before the matrix's buffers exist. Where the grid's table would exceed `maxGridCells`, or the
-/// device is the reference device or has no double precision, the host assembles and uploads (`onDevice`
-/// false). With `storage` and `recycled`, the host arrays and the device buffers of the level before are
+/// count before the matrix's buffers exist. Where the grid's table would exceed `maxGridCells`, the double
+/// values one buffer, or the device is the reference device or has no double precision, the host assembles
+/// and uploads (`onDevice` false). With `storage` and `recycled`, the host arrays and the device buffers of the level before are
 /// released or reused as assembleWendland and DeviceCsr::upload do.
 struct DeviceAssembly {
   CsrMatrix host;

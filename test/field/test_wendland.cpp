@@ -225,6 +225,19 @@ TEST_SUITE("field") {
         duplexfit::detail::assembleOnDevice(dev, duplexfit::Precision::Float, centres, 0.12, 0.3, {}, nullptr, 1000);
     CHECK_FALSE(tree.onDevice);
     CHECK(tree.host.values == again.host.values);
+    // Double values beyond one buffer of the device (a cap of 3 MiB: 4.6 MB of them, 2.3 MB as floats): the
+    // host assembles and uploads the float system.
+    duplexfit::DeviceOptions small;
+    small.maxAllocBytes = 3u << 20;
+    const duplexfit::Device capped = duplexfit::Device::open(dev.info().spec, small);
+    const CsrMatrix wide = duplexfit::assembleWendland(centres, 0.25, 0.3);
+    REQUIRE(wide.nonZeros() * sizeof(double) > small.maxAllocBytes);
+    REQUIRE(wide.nonZeros() * sizeof(float) <= small.maxAllocBytes);
+    const duplexfit::detail::DeviceAssembly fallback =
+        duplexfit::detail::assembleOnDevice(capped, duplexfit::Precision::Float, centres, 0.25, 0.3, {});
+    CHECK_FALSE(fallback.onDevice);
+    CHECK(fallback.host.values == wide.values);
+    CHECK(fallback.device.nonZeros() == wide.nonZeros());
     // The reference device has no kernels: its assembly is the host's.
     const duplexfit::detail::DeviceAssembly ref = duplexfit::detail::assembleOnDevice(
         duplexfit::Device::reference(), duplexfit::Precision::Float, centres, 0.12, 0.3, {});
