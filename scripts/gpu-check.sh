@@ -17,6 +17,12 @@ export LD_LIBRARY_PATH="$PWD/.gpu/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 bin=.gpu/bin
 device=${DUPLEXFIT_CHECK_DEVICE:-gpu}
 [ -x "$bin/duplexfit" ] || { echo "gpu-check: no .gpu/bin/duplexfit (run scripts/gpu-bundle.sh, carry .gpu)" >&2; exit 1; }
+# GCC's runtime from the bundle only where the machine's own does not load the binaries.
+if ! "$bin/duplexfit" --version >/dev/null 2>>"$log"; then
+  export LD_LIBRARY_PATH="$PWD/.gpu/lib-runtime:$LD_LIBRARY_PATH"
+  "$bin/duplexfit" --version >/dev/null 2>>"$log" || { echo "gpu-check: the binaries do not load" | tee -a "$log" >&2; exit 1; }
+  echo "== with the bundle's libstdc++" >>"$log"
+fi
 say "bundle of git $(cat .gpu/commit 2>/dev/null), device $device, $(date -u +%FT%TZ)"
 
 if [ "$device" = gpu ] && ! ls /etc/OpenCL/vendors/*.icd >/dev/null 2>&1; then
