@@ -10,7 +10,6 @@
 #include <utility>
 #include <vector>
 
-#include "device/cl_check.hpp"
 #include "device/device_impl.hpp"
 #include "duplexfit/error.hpp"
 #include "field/wendland_detail.hpp"
@@ -22,22 +21,6 @@ namespace duplexfit::detail {
 namespace {
 
 constexpr std::int64_t kMaxNonZeros = std::numeric_limits<Index>::max();
-
-template <typename T>
-cl::Buffer uploadArray(const Device& device, const T* data, std::size_t count, const std::string& what) {
-  cl::Buffer b = createBuffer(device, std::max<std::size_t>(count, 1) * sizeof(T), what);
-  if (count > 0) {
-    DUPLEXFIT_CL_CHECK(device.impl()->queue().enqueueWriteBuffer(b, CL_TRUE, 0, count * sizeof(T), data));
-  }
-  return b;
-}
-
-template <typename T>
-void downloadArray(const Device& device, const cl::Buffer& b, T* data, std::size_t count) {
-  if (count > 0) {
-    DUPLEXFIT_CL_CHECK(device.impl()->queue().enqueueReadBuffer(b, CL_TRUE, 0, count * sizeof(T), data));
-  }
-}
 
 DeviceAssembly onHost(const Device& device, Precision precision, const Points& centres, double sigma, double lambda,
                       const NonZeroCheck& beforeAllocating, Interrupter* interrupter, std::size_t maxGridCells,
@@ -108,7 +91,7 @@ DeviceAssembly assembleOnDevice(const Device& device, Precision precision, const
     impl.launch(k, n, impl.params().workGroup, name);
   }
   std::vector<std::uint32_t> count(n);
-  downloadArray(device, countBuf, count.data(), n);
+  readArray(device, countBuf, count.data(), n);
   pollInterrupter(interrupter);
   a.rowPtr.resize(n + 1);
   a.rowPtr[0] = 0;
@@ -144,8 +127,8 @@ DeviceAssembly assembleOnDevice(const Device& device, Precision precision, const
   }
   a.colIdx.resize(nnz);
   a.values.resize(nnz);
-  downloadArray(device, colBuf, a.colIdx.data(), nnz);
-  downloadArray(device, valDBuf, a.values.data(), nnz);
+  readArray(device, colBuf, a.colIdx.data(), nnz);
+  readArray(device, valDBuf, a.values.data(), nnz);
   pollInterrupter(interrupter);
 
   auto s = std::make_unique<CsrStorage>(CsrStorage{device, n, n, nnz, precision, a.diagonal(), {}, {}, {}, {}, {}, {}, {}});

@@ -4,9 +4,11 @@
 
 #include <CL/opencl.hpp>
 
+#include <algorithm>
 #include <string>
 #include <vector>
 
+#include "device/cl_check.hpp"
 #include "device/device_impl.hpp"
 #include "duplexfit/device.hpp"
 #include "duplexfit/linalg.hpp"
@@ -63,6 +65,24 @@ inline std::size_t sizeOf(Precision p) { return p == Precision::Double ? sizeof(
 
 /// A read-write buffer of `bytes` after checking the device's allocation limit; null for 0 bytes.
 cl::Buffer createBuffer(const Device& device, std::size_t bytes, const std::string& what);
+
+/// A buffer holding `count` elements copied from `data` (blocking write; a one-element buffer for none).
+template <typename T>
+cl::Buffer uploadArray(const Device& device, const T* data, std::size_t count, const std::string& what) {
+  cl::Buffer b = createBuffer(device, std::max<std::size_t>(count, 1) * sizeof(T), what);
+  if (count > 0) {
+    DUPLEXFIT_CL_CHECK(device.impl()->queue().enqueueWriteBuffer(b, CL_TRUE, 0, count * sizeof(T), data));
+  }
+  return b;
+}
+
+/// Reads the first `count` elements of `buffer` into `data` (blocking).
+template <typename T>
+void readArray(const Device& device, const cl::Buffer& buffer, T* data, std::size_t count) {
+  if (count > 0) {
+    DUPLEXFIT_CL_CHECK(device.impl()->queue().enqueueReadBuffer(buffer, CL_TRUE, 0, count * sizeof(T), data));
+  }
+}
 
 /// Sets a REAL kernel argument as float or double according to the precision.
 void setRealArg(cl::Kernel& kernel, cl_uint index, double value, Precision precision, const char* name);

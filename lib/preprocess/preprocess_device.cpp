@@ -21,19 +21,13 @@ std::vector<T> convert(const std::vector<S>& v) {
 
 template <typename T>
 cl::Buffer upload(const Device& device, const std::vector<T>& data, const std::string& what) {
-  cl::Buffer b = createBuffer(device, std::max<std::size_t>(data.size(), 1) * sizeof(T), what);
-  if (!data.empty()) {
-    DUPLEXFIT_CL_CHECK(device.impl()->queue().enqueueWriteBuffer(b, CL_TRUE, 0, data.size() * sizeof(T), data.data()));
-  }
-  return b;
+  return uploadArray(device, data.data(), data.size(), what);
 }
 
 template <typename T>
 std::vector<double> download(const Device& device, const cl::Buffer& b, std::size_t count) {
   std::vector<T> out(count);
-  if (count > 0) {
-    DUPLEXFIT_CL_CHECK(device.impl()->queue().enqueueReadBuffer(b, CL_TRUE, 0, count * sizeof(T), out.data()));
-  }
+  readArray(device, b, out.data(), count);
   return std::vector<double>(out.begin(), out.end());
 }
 

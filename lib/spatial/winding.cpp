@@ -39,9 +39,6 @@ struct Node {
 }  // namespace
 
 Eigen::VectorXd estimatePointAreas(const Points& positions, const Points& normals, int k) {
-  if (positions.rows() != normals.rows()) throw InvalidArgument("estimatePointAreas: positions and normals differ in count");
-  if (k < 1) throw InvalidArgument("estimatePointAreas: k must be at least 1");
-  if (positions.rows() < 2) return Eigen::VectorXd::Zero(positions.rows());
   return estimatePointAreas(positions, normals, k, NeighborIndex(positions));
 }
 
