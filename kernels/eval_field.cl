@@ -1,6 +1,6 @@
 /* Evaluation of the multi-level CSRBF field (docs/method.md section 6) at query points (needs common.cl
  * and field_point.cl, whose dpx_field_point is the one body shared with the C++ reference twin).
- * One work-item per query; the _v8 kernels (CPU devices, below) sum eight centres a step.
+ * One work-item per query; the _v8 kernels (CPU devices, below) sum 8 or 16 centres a step.
  * Arguments:
  *   nq, queries[3*nq]           query points (normalised coordinates)
  *   nlevels                     how many levels (from the first) to sum
@@ -29,37 +29,65 @@ DPX_EVAL_KERNEL(eval_field_value, dpx_field_point, 1)
 DPX_EVAL_KERNEL(eval_field_gradient, dpx_field_point, 4)
 DPX_EVAL_KERNEL(eval_field_hessian, dpx_field_point, 10)
 
-/* ---- The CPU devices' variant: eight centres a step in SIMD registers ----
+/* ---- The CPU devices' variant: FIELD_WIDTH (8 or 16) centres a step in SIMD registers ----
  * The same sum as dpx_field_point, term for term (the C++ reference twin and the brute-force oracle are
- * what the tests compare both kernels with); only the order of the additions differs: each of the eight
- * lanes keeps its own partial sums of a level, added to the running sum (which starts at f0) at the end of
- * the level. Near the surface the coarse levels cancel f0, so the small fine-level terms are added to
- * small sums, as in the scalar kernel (lane sums kept over all levels carry the coarse levels' magnitude:
- * in float, 1.7x the scalar kernel's largest error on fandisk_550k). PoCL runs one work-item's loop over a row of
- * centres as scalar code (the trip count differs between work-items, so it cannot vectorise across
- * them); here the loop itself is 8 wide.
+ * what the tests compare both kernels with); only the order of the additions differs: each of the
+ * FIELD_WIDTH lanes keeps its own partial sums of a level, added to the running sum (which starts at f0)
+ * at the end of the level. Near the surface the coarse levels cancel f0, so the small fine-level terms are
+ * added to small sums, as in the scalar kernel (lane sums kept over all levels carry the coarse levels'
+ * magnitude: in float, 1.7x the scalar kernel's largest error on fandisk_550k). PoCL runs one work-item's
+ * loop over a row of centres as scalar code (the trip count differs between work-items, so it cannot
+ * vectorise across them); here the loop itself is FIELD_WIDTH wide. The width is the device's native
+ * float vector (LaunchParams::fieldWidth: 16 with AVX-512, where a row's few centres also take fewer
+ * masked steps, else 8); the two widths add a level's terms in different orders, so their results differ
+ * in float rounding only.
  * The centres come in the layout FieldEvaluator uploads for these kernels: level by level, four arrays
  * of the level's size n (x, y, z, then w), level l from 4 * its centre offset, so that each step reads
- * four contiguous vectors (vload8). Out of the x-y-z-w records of the scalar kernel PoCL built each step
- * from 8-byte loads and shuffles (docs/benchmarks.md). Lanes past the end of the row
- * are masked, so the buffer is allocated 8 reals longer than the centres (FieldEvaluator pads it; the
- * values there are never used).
+ * four contiguous vectors (vload8/vload16). Out of the x-y-z-w records of the scalar kernel PoCL built
+ * each step from 8-byte loads and shuffles (docs/benchmarks.md). Lanes past the end of the row are
+ * masked, so the buffer is allocated 16 reals longer than the centres (FieldEvaluator pads it; the values
+ * there are never used).
  * Float only: in double, FieldEvaluator runs the scalar kernel. */
 #ifndef REAL_IS_DOUBLE
-typedef float8 real8;
-typedef int8 mask8;
+#ifndef FIELD_WIDTH
+#define FIELD_WIDTH 8
+#endif
+#if FIELD_WIDTH == 16
+#ifdef __clang__
+/* Without AVX-512 (DUPLEXFIT_FIELD_KERNEL=vector16 on an AVX2 CPU) clang warns that a float16 return
+ * value changes the ABI; vload16 and dpx_hsum are inlined, so no call passes one. */
+#pragma clang diagnostic ignored "-Wpsabi"
+#endif
+typedef float16 realv;
+typedef int16 maskv;
+#define DPX_VLOAD vload16
+#define DPX_LANE_INDEX (maskv)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15)
 
-inline real dpx_hsum8(const real8 v) {
+inline real dpx_hsum(const realv v16) {
+  const float8 v = v16.lo + v16.hi;
   const float4 h = v.lo + v.hi;
   return (h.s0 + h.s2) + (h.s1 + h.s3);
 }
+#elif FIELD_WIDTH == 8
+typedef float8 realv;
+typedef int8 maskv;
+#define DPX_VLOAD vload8
+#define DPX_LANE_INDEX (maskv)(0, 1, 2, 3, 4, 5, 6, 7)
+
+inline real dpx_hsum(const realv v) {
+  const float4 h = v.lo + v.hi;
+  return (h.s0 + h.s2) + (h.s1 + h.s3);
+}
+#else
+#error "FIELD_WIDTH must be 8 or 16"
+#endif
 
 inline void dpx_field_point_v8(const real x, const real y, const real z, const uint nlevels,
                                __global const real* params, __global const uint* dims,
                                __global const uint* cell_start, __global const real* centres, const real f0,
                                const int k, real* acc) {
   real sum[10] = {f0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
-  const mask8 lane = (mask8)(0, 1, 2, 3, 4, 5, 6, 7);
+  const maskv lane = DPX_LANE_INDEX;
   for (uint l = 0; l < nlevels; ++l) {
     __global const real* p = params + 7 * l;
     const real oy = p[1], oz = p[2], inv_cell = p[3], sigma = p[4], inv_sigma = p[5];
@@ -78,36 +106,36 @@ inline void dpx_field_point_v8(const real x, const real y, const real z, const u
     const int cy = (int)floor(fy), cz = (int)floor(fz);
     const real s2 = sigma * sigma;
     const real h_scale = (real)20 * inv_sigma * inv_sigma;
-    real8 f = 0, gx = 0, gy = 0, gz = 0;
-    real8 hxx = 0, hxy = 0, hxz = 0, hyy = 0, hyz = 0, hzz = 0;
+    realv f = 0, gx = 0, gy = 0, gz = 0;
+    realv hxx = 0, hxy = 0, hxz = 0, hyy = 0, hyz = 0, hzz = 0;
     for (int iz = max(cz - 1, 0); iz <= min(cz + 1, nz - 1); ++iz) {
       for (int iy = max(cy - 1, 0); iy <= min(cy + 1, ny - 1); ++iy) {
         const uint row = cs_off + (uint)((iz * ny + iy) * nx);
         const uint b = cell_start[row + (uint)x0];
         const uint e = cell_start[row + (uint)x1 + 1];
-        for (uint j = b; j < e; j += 8) {
+        for (uint j = b; j < e; j += FIELD_WIDTH) {
           /* lanes past the row (their values may be the next array's or the padding) sit outside the support */
-          const mask8 valid = lane < (mask8)((int)(e - j));
-          const real8 ux = select((real8)sigma, x - vload8(0, px + j), valid);
-          const real8 uy = select((real8)sigma, y - vload8(0, py + j), valid);
-          const real8 uz = select((real8)sigma, z - vload8(0, pz + j), valid);
-          const real8 d2 = ux * ux + uy * uy + uz * uz;
-          const mask8 inside = d2 < (real8)s2;
-          const real8 w = select((real8)0, vload8(0, pw + j), inside);
-          const real8 rho = sqrt(d2);
-          const real8 r = rho * inv_sigma;
-          const real8 t = fmax((real8)1 - r, (real8)0);
-          const real8 t2 = t * t;
-          f += w * t2 * t2 * ((real8)4 * r + (real8)1);
+          const maskv valid = lane < (maskv)((int)(e - j));
+          const realv ux = select((realv)sigma, x - DPX_VLOAD(0, px + j), valid);
+          const realv uy = select((realv)sigma, y - DPX_VLOAD(0, py + j), valid);
+          const realv uz = select((realv)sigma, z - DPX_VLOAD(0, pz + j), valid);
+          const realv d2 = ux * ux + uy * uy + uz * uz;
+          const maskv inside = d2 < (realv)s2;
+          const realv w = select((realv)0, DPX_VLOAD(0, pw + j), inside);
+          const realv rho = sqrt(d2);
+          const realv r = rho * inv_sigma;
+          const realv t = fmax((realv)1 - r, (realv)0);
+          const realv t2 = t * t;
+          f += w * t2 * t2 * ((realv)4 * r + (realv)1);
           if (k >= 4) {
-            const real8 g = -w * h_scale * t2 * t;
+            const realv g = -w * h_scale * t2 * t;
             gx += g * ux;
             gy += g * uy;
             gz += g * uz;
           }
           if (k >= 10) {
-            const real8 a = w * h_scale * t2;
-            const real8 c = select((real8)0, (real8)3 * r / d2, rho > (real8)0);
+            const realv a = w * h_scale * t2;
+            const realv c = select((realv)0, (realv)3 * r / d2, rho > (realv)0);
             hxx += a * (c * ux * ux - t);
             hyy += a * (c * uy * uy - t);
             hzz += a * (c * uz * uz - t);
@@ -118,19 +146,19 @@ inline void dpx_field_point_v8(const real x, const real y, const real z, const u
         }
       }
     }
-    sum[0] += dpx_hsum8(f);
+    sum[0] += dpx_hsum(f);
     if (k >= 4) {
-      sum[1] += dpx_hsum8(gx);
-      sum[2] += dpx_hsum8(gy);
-      sum[3] += dpx_hsum8(gz);
+      sum[1] += dpx_hsum(gx);
+      sum[2] += dpx_hsum(gy);
+      sum[3] += dpx_hsum(gz);
     }
     if (k >= 10) {
-      sum[4] += dpx_hsum8(hxx);
-      sum[5] += dpx_hsum8(hxy);
-      sum[6] += dpx_hsum8(hxz);
-      sum[7] += dpx_hsum8(hyy);
-      sum[8] += dpx_hsum8(hyz);
-      sum[9] += dpx_hsum8(hzz);
+      sum[4] += dpx_hsum(hxx);
+      sum[5] += dpx_hsum(hxy);
+      sum[6] += dpx_hsum(hxz);
+      sum[7] += dpx_hsum(hyy);
+      sum[8] += dpx_hsum(hyz);
+      sum[9] += dpx_hsum(hzz);
     }
   }
   for (int c = 0; c < k; ++c) acc[c] = sum[c];

@@ -40,6 +40,7 @@ struct DeviceInfo {
   std::uint64_t maxAllocBytes = 0;  ///< CL_DEVICE_MAX_MEM_ALLOC_SIZE: the largest single buffer
   std::uint64_t localMemBytes = 0;
   std::size_t maxWorkGroupSize = 0;
+  unsigned nativeFloatWidth = 0;    ///< CL_DEVICE_NATIVE_VECTOR_WIDTH_FLOAT (16 on a CPU with AVX-512, 8 with AVX2)
   bool fp64 = true;                 ///< cl_khr_fp64 (or OpenCL ≥ 1.2 double-fp-config) is reported
 };
 
@@ -78,11 +79,14 @@ struct DeviceTuning {
   std::size_t lanes = 0;         ///< work-items per row in the row-per-group SpMV
   std::size_t groups = 0;        ///< work-groups of the group reductions
   bool chunkReductions = false;  ///< CPU style: chunk reductions and the fused row-per-item SpMV
-  /// Float field evaluation by the 8-wide kernels (a CPU device's SIMD units; DUPLEXFIT_FIELD_KERNEL=vector|scalar;
-  /// double always runs the scalar kernel).
+  /// Float field evaluation by the SIMD kernels, fieldWidth centres a step (a CPU device's vector units;
+  /// DUPLEXFIT_FIELD_KERNEL=vector|vector8|vector16|scalar; double always runs the scalar kernel).
   bool fieldVector = false;
-  /// "wg=… chunk=… lanes=… groups=… reductions=chunk|group field=vector|scalar", or "reference" for the reference
-  /// device.
+  /// Centres a step of the SIMD field kernels: 16 where the device's native float vector is 16 wide (AVX-512),
+  /// else 8; 1 with the scalar kernel.
+  int fieldWidth = 0;
+  /// "wg=… chunk=… lanes=… groups=… reductions=chunk|group field=vector16|vector8|scalar", or "reference" for
+  /// the reference device.
   std::string describe() const;
 };
 

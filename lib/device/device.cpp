@@ -152,6 +152,7 @@ DeviceInfo describe(const cl::Platform& platform, const cl::Device& d, int p, in
   info.maxAllocBytes = deviceInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>(d, cl_ulong{0});
   info.localMemBytes = deviceInfo<CL_DEVICE_LOCAL_MEM_SIZE>(d, cl_ulong{0});
   info.maxWorkGroupSize = deviceInfo<CL_DEVICE_MAX_WORK_GROUP_SIZE>(d, std::size_t{0});
+  info.nativeFloatWidth = deviceInfo<CL_DEVICE_NATIVE_VECTOR_WIDTH_FLOAT>(d, cl_uint{0});
   const std::string extensions = deviceInfo<CL_DEVICE_EXTENSIONS>(d, std::string());
   const auto fpConfig = deviceInfo<CL_DEVICE_DOUBLE_FP_CONFIG>(d, cl_device_fp_config{0});
   info.fp64 = extensions.find("cl_khr_fp64") != std::string::npos || fpConfig != 0;
@@ -383,7 +384,12 @@ std::string DeviceTuning::describe() const {
   if (workGroup == 0) return "reference";
   std::ostringstream s;
   s << "wg=" << workGroup << " chunk=" << chunk << " lanes=" << lanes << " groups=" << groups
-    << " reductions=" << (chunkReductions ? "chunk" : "group") << " field=" << (fieldVector ? "vector" : "scalar");
+    << " reductions=" << (chunkReductions ? "chunk" : "group") << " field=";
+  if (fieldVector) {
+    s << "vector" << fieldWidth;
+  } else {
+    s << "scalar";
+  }
   return s.str();
 }
 

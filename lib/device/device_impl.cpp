@@ -38,9 +38,11 @@ LaunchParams chooseParams(const DeviceInfo& info) {
     p.groups = std::max<std::size_t>(4, 4 * info.computeUnits);
     p.chunkReductions = true;
     // The field sum's inner loop over a row of centres runs 8 centres a step in SIMD registers (float):
-    // 1.6-1.9x (value) and 1.7x (value and gradient) faster than one centre a step on PoCL
-    // (docs/benchmarks.md).
+    // 1.6-1.9x (value) and 1.7x (value and gradient) faster than one centre a step on PoCL; 16 a step
+    // where the device's native float vector is that wide (AVX-512): another 1.25x (value) and 1.3x
+    // (value and gradient) on this project's Zen 5 machine (docs/benchmarks.md).
     p.fieldVector = true;
+    p.fieldWidth = info.nativeFloatWidth >= 16 ? 16 : 8;
   } else {
     p.workGroup = 256;
     p.chunk = 512;
@@ -58,10 +60,13 @@ LaunchParams chooseParams(const DeviceInfo& info) {
   }
   if (const char* v = std::getenv("DUPLEXFIT_FIELD_KERNEL"); v != nullptr && *v != '\0') {
     const std::string mode = v;
-    if (mode != "vector" && mode != "scalar") {
-      throw InvalidArgument("DUPLEXFIT_FIELD_KERNEL='" + mode + "' must be vector or scalar");
+    if (mode != "vector" && mode != "vector8" && mode != "vector16" && mode != "scalar") {
+      throw InvalidArgument("DUPLEXFIT_FIELD_KERNEL='" + mode + "' must be vector, vector8, vector16 or scalar");
     }
-    p.fieldVector = mode == "vector";
+    p.fieldVector = mode != "scalar";
+    if (mode == "vector") p.fieldWidth = info.nativeFloatWidth >= 16 ? 16 : 8;
+    if (mode == "vector8") p.fieldWidth = 8;
+    if (mode == "vector16") p.fieldWidth = 16;
   }
   p.workGroup = envSize("DUPLEXFIT_WG_SIZE", p.workGroup);
   p.chunk = envSize("DUPLEXFIT_CHUNK", p.chunk);
@@ -85,6 +90,7 @@ DeviceTuning LaunchParams::tuning() const {
   t.groups = groups;
   t.chunkReductions = chunkReductions;
   t.fieldVector = fieldVector;
+  t.fieldWidth = fieldVector ? fieldWidth : 1;
   return t;
 }
 
@@ -138,7 +144,7 @@ std::string DeviceImpl::programSource(const std::string& program, Precision prec
     src << "#define REAL float\n";
   }
   src << "#define WG " << params_.workGroup << "\n#define CHUNK " << params_.chunk << "\n#define LANES "
-      << params_.lanes << "\n";
+      << params_.lanes << "\n#define FIELD_WIDTH " << params_.fieldWidth << "\n";
   for (const std::string& file : it->second) {
     src << "// ---- " << file << ".cl\n" << kernelSource(file) << "\n";
   }

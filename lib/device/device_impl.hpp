@@ -25,7 +25,8 @@ struct LaunchParams {
   std::size_t lanes = 16;       ///< work-items per row in spmv_csr_group
   std::size_t groups = 256;     ///< work-groups of the group reductions
   bool chunkReductions = true;  ///< CPU style: chunk reductions and fused row-per-item SpMV
-  bool fieldVector = true;      ///< float field evaluation by the 8-wide eval_field_*_v8 kernels (CPU devices)
+  bool fieldVector = true;      ///< float field evaluation by the SIMD eval_field_*_v8 kernels (CPU devices)
+  int fieldWidth = 8;           ///< their centres a step, 8 or 16 (FIELD_WIDTH in the field program)
   DeviceTuning tuning() const;  ///< the public view (Device::tuning)
   std::string describe() const;
 };

@@ -35,7 +35,7 @@ struct EvaluatorImpl {
   std::size_t centres = 0;               // centres of the levels added so far
   std::vector<double> packed;           // x, y, z, w per centre, sorted by cell within each level
   std::vector<float> paramsF, packedF;  // float copies (precision float)
-  /// With the 8-wide kernels (float on a CPU device): the centres level by level as four arrays x, y, z,
+  /// With the SIMD kernels (float on a CPU device): the centres level by level as four arrays x, y, z,
   /// w of the level's size each, level k from 4 × its centre offset (kernels/eval_field.cl), written by
   /// addLevel straight from the level; packed and packedF are then not kept (fandisk_550k: the whole
   /// field's 104 MB of doubles grew again for the finest level, 0.27-0.8 s of fresh pages and copies).
@@ -67,7 +67,8 @@ constexpr std::size_t kMaxCellsPerLevel = std::size_t{1} << 24;
 /// (y, z) visited fewer centres still but cost more than it saved in the value kernel (docs/benchmarks.md).
 constexpr std::size_t kSplitX = 8;
 constexpr std::size_t kChunk = std::size_t{1} << 20;
-/// Reals past the last centre in the device buffer: 8 records of x, y, z, w (kernels/eval_field.cl, _v8).
+/// Reals past the last centre in the device buffer: the SIMD kernels (kernels/eval_field.cl, _v8) read, and
+/// mask, up to FIELD_WIDTH − 1 ≤ 15 reals past the last weight.
 constexpr std::size_t kCentrePad = 4 * 8;
 
 void addLevel(detail::EvaluatorImpl& e, const FieldLevel& level) {
@@ -224,7 +225,7 @@ std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u,
 /// Brings the device copy of `host` up to date: only the elements appended since the last call are
 /// written, into the same buffer while it has room; otherwise a new buffer of `reserve` × the size
 /// (clipped to the device's largest allocation) receives everything. `pad` more elements are always
-/// allocated past the host's (never written: the 8-wide field kernels read, and mask, up to 7 centres
+/// allocated past the host's (never written: the SIMD field kernels read, and mask, up to 15 reals
 /// past the last one).
 template <typename T>
 void syncArray(const Device& device, detail::EvaluatorImpl::DeviceArray& a, const std::vector<T>& host, double reserve,

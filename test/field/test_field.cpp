@@ -17,8 +17,9 @@ using namespace duplexfit;
 
 namespace {
 
-/// The OpenCL device `spec` opened with DUPLEXFIT_FIELD_KERNEL=`kernel` (vector: the 8-wide _v8 kernels,
-/// a CPU device's default; scalar: one centre a step, a GPU's).
+/// The OpenCL device `spec` opened with DUPLEXFIT_FIELD_KERNEL=`kernel` (vector8, vector16: the SIMD _v8
+/// kernels 8 or 16 centres a step, a CPU device's default at its native width; scalar: one centre a step, a
+/// GPU's).
 Device openWithFieldKernel(const std::string& spec, const char* kernel) {
   setenv("DUPLEXFIT_FIELD_KERNEL", kernel, 1);
   Device d = Device::open(spec);
@@ -31,9 +32,11 @@ Device openWithFieldKernel(const std::string& spec, const char* kernel) {
 void forEachDeviceAndPrecision(const std::function<void(const Device&, Precision)>& body) {
   std::vector<Device> devices{Device::reference()};
   if (const Device* d = testing::openclTestDevice()) {
-    for (const char* kernel : {"vector", "scalar"}) {
+    for (const char* kernel : {"vector8", "vector16", "scalar"}) {
       devices.push_back(openWithFieldKernel(d->info().spec, kernel));
-      REQUIRE(devices.back().tuning().fieldVector == (std::string(kernel) == "vector"));
+      const DeviceTuning t = devices.back().tuning();
+      REQUIRE(t.fieldVector == (std::string(kernel) != "scalar"));
+      REQUIRE(t.fieldWidth == (std::string(kernel) == "vector8" ? 8 : std::string(kernel) == "vector16" ? 16 : 1));
     }
   }
   for (const Device& d : devices) {
@@ -145,6 +148,28 @@ TEST_SUITE("field") {
       }
       CHECK(bad == 0);
     });
+  }
+
+  TEST_CASE("field: the SIMD kernel's width is the device's native float vector unless DUPLEXFIT_FIELD_KERNEL says") {
+    DUPLEXFIT_OPENCL_DEVICE(dev);
+    const Device d = openWithFieldKernel(dev.info().spec, "vector");
+    CHECK(d.tuning().fieldWidth == (dev.info().nativeFloatWidth >= 16 ? 16 : 8));
+    if (dev.info().type == DeviceType::Cpu) {
+      CHECK(dev.tuning().fieldVector);
+      CHECK(dev.tuning().fieldWidth == d.tuning().fieldWidth);
+      CHECK(dev.tuning().describe().find(" field=vector" + std::to_string(d.tuning().fieldWidth)) != std::string::npos);
+    }
+    const Device s = openWithFieldKernel(dev.info().spec, "scalar");
+    CHECK(s.tuning().fieldWidth == 1);
+    CHECK(s.tuning().describe().find(" field=scalar") != std::string::npos);
+    setenv("DUPLEXFIT_FIELD_KERNEL", "vector32", 1);
+    try {
+      (void)Device::open(dev.info().spec);
+      FAIL("DUPLEXFIT_FIELD_KERNEL=vector32 was accepted");
+    } catch (const InvalidArgument& e) {
+      CHECK(std::string(e.what()).find("DUPLEXFIT_FIELD_KERNEL='vector32'") != std::string::npos);
+    }
+    unsetenv("DUPLEXFIT_FIELD_KERNEL");
   }
 
   TEST_CASE("field: levels too fine for a full cell table (wider x-cells, then deeper cells) match the brute-force sum") {
