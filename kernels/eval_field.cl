@@ -45,7 +45,7 @@ DPX_EVAL_KERNEL(eval_field_hessian, dpx_field_point, 10)
  * of the level's size n (x, y, z, then w), level l from 4 * its centre offset, so that each step reads
  * four contiguous vectors (vload8/vload16). Out of the x-y-z-w records of the scalar kernel PoCL built
  * each step from 8-byte loads and shuffles (docs/benchmarks.md). Lanes past the end of the row are
- * masked, so the buffer is allocated 16 reals longer than the centres (FieldEvaluator pads it; the values
+ * masked, so the buffer is allocated 32 reals longer than the centres (FieldEvaluator pads it; the values
  * there are never used).
  * Float only: in double, FieldEvaluator runs the scalar kernel. */
 #ifndef REAL_IS_DOUBLE
