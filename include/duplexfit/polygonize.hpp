@@ -150,6 +150,9 @@ struct PolygonizeStats {
   /// Cells sampled to close surfaces that left the refined region: 0 unless |∇f| exceeded
   /// PolygonizeOptions::lipschitz somewhere (then consider a larger bound).
   std::int64_t continuedCells = 0;
+  /// Chunks (layers of cells) of an extraction round taken as they were into the next round: those with no
+  /// cell continued in or next to them.
+  std::int64_t reusedChunks = 0;
   std::int64_t storageBytes = 0;   ///< memory held by the sampled node values (tiles + lattice)
   std::int64_t thinCells = 0;          ///< crossed cells with a node layer one node thick
   std::int64_t deviatingCells = 0;     ///< of those, the ones beyond refineTolerance (all of them without it)

@@ -488,6 +488,13 @@ std::vector<Cell> deviatingCells(const NodeStore& store, const GridSpec& grid, d
 
 }  // namespace
 
+/// A round's chunks (see RefineCache::chunks): their z ranges, meshes and open cells.
+struct ChunkCache {
+  std::vector<int> z0, z1;
+  std::vector<std::vector<ChunkMesh>> meshes;
+  std::vector<std::vector<Cell>> open;
+};
+
 Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vector<double>& isoValues,
                          const PolygonizeOptions& options, const FieldSampler& sampler,
                          PolygonizeStats& stats, RefineCache* cache) {
@@ -534,6 +541,7 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
   }
   std::vector<RefinedRegion>& regions = cache != nullptr ? cache->regions : ownRegions;
   bool refined = false;
+  bool regionsRebuilt = false;  // some region differs from the previous round's
   const int deepest = options.refineLevels + (options.refineDeeperCells.empty() ? 0 : 1);
   if (options.refineLevels > 0 &&
       (options.refineThin || !options.refineCells.empty() || !options.refineDeeperCells.empty()) &&
@@ -587,6 +595,7 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
     }
     if (error) std::rethrow_exception(error);
     for (std::size_t q = 0; q < isoValues.size(); ++q) {
+      regionsRebuilt = regionsRebuilt || rebuild[q] != 0;
       if (rebuild[q] && cache != nullptr) {
         cache->seeds[q] = seeds[q];
         cache->built[q] = 1;
@@ -599,11 +608,33 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
     }
   }
 
+  // A chunk of the previous round is still right when no cell was marked in its layers or the layers
+  // next to them (its cells' node values never change, and only the marks of its cells' neighbours
+  // decide its open cells) and the refined regions are the same (fandisk_550k: every chunk was contoured
+  // again for 2 new cells).
+  std::vector<char> reuse(z0.size(), 0);
+  if (cache != nullptr && cache->chunks && !regionsRebuilt && cache->chunks->z0 == z0 && cache->chunks->z1 == z1 &&
+      cache->changedZ.size() == static_cast<std::size_t>(nz)) {
+    for (std::size_t c = 0; c < z0.size(); ++c) {
+      bool changed = false;
+      for (int z = std::max(0, z0[c] - 1); z <= std::min(nz - 1, z1[c]) && !changed; ++z) {
+        changed = cache->changedZ[static_cast<std::size_t>(z)] != 0;
+      }
+      if (!changed) {
+        reuse[c] = 1;
+        ++stats.reusedChunks;
+        chunks[c] = std::move(cache->chunks->meshes[c]);
+        open[c] = std::move(cache->chunks->open[c]);
+      }
+    }
+  }
+  if (cache != nullptr) cache->chunks.reset();
   const Extractor extractor(store, grid, isoValues, refined ? &regions : nullptr);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
   for (int c = 0; c < chunkCount; ++c) {
     try {
       const std::size_t cc = static_cast<std::size_t>(c);
+      if (reuse[cc]) continue;
       chunks[cc].resize(isoValues.size());
       extractor.run(z0[cc], z1[cc], chunks[cc], open[cc]);
       if (cc >= coreChunks) chunks[cc].clear();  // a halo chunk: only its open neighbours count
@@ -622,7 +653,19 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
     }
   };
   for (const auto& o : open) takeOpen(o);
-  if (!result.openCells.empty()) return result;  // the caller samples more and extracts again
+  // The caller samples more and extracts again: keep the chunks for that round.
+  const auto keepChunks = [&] {
+    if (cache == nullptr) return;
+    cache->chunks = std::make_shared<ChunkCache>();
+    cache->chunks->z0 = z0;
+    cache->chunks->z1 = z1;
+    cache->chunks->meshes = std::move(chunks);
+    cache->chunks->open = std::move(open);
+  };
+  if (!result.openCells.empty()) {
+    keepChunks();
+    return result;
+  }
   std::vector<PatchMesh> patches(isoValues.size());
   for (std::size_t q = 0; q < isoValues.size(); ++q) {
     if (regions[q].empty()) continue;
@@ -633,7 +676,10 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
     takeOpen(patchOpen);
     stats.refinedSeconds += secondsSince(start);
   }
-  if (!result.openCells.empty()) return result;
+  if (!result.openCells.empty()) {
+    keepChunks();
+    return result;
+  }
 
   const std::int64_t planeNodes =
       static_cast<std::int64_t>(store.cells(0) + 1) * (store.cells(1) + 1);

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <unordered_map>
 #include <vector>
 
@@ -36,6 +37,11 @@ struct RefineCache {
   std::vector<std::vector<std::array<int, 3>>> seeds;
   std::vector<RefinedRegion> regions;
   std::vector<char> built;  ///< regions[q] was built in an earlier round
+  /// The contoured chunks of a round that ended with open cells (extract.cpp), and per cell layer z
+  /// whether the caller marked cells there since (`changedZ`, sized by the caller): a chunk whose layers
+  /// and their neighbours did not change, under the same refined regions, is taken as it was.
+  std::shared_ptr<struct ChunkCache> chunks;
+  std::vector<char> changedZ;
 };
 
 Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vector<double>& isoValues,

@@ -315,9 +315,14 @@ PolygonizeResult polygonize(const FieldSampler& sampler, const GridSpec& grid,
       break;
     }
     const auto closeStart = std::chrono::steady_clock::now();
-    stats.continuedCells +=
+    refineCache.changedZ.assign(static_cast<std::size_t>(grid.cells(2)), 0);
+    const std::int64_t added =
         detail::closeSurfaces(sampler, grid, isoValues, options, report, kSamplingShare, store,
-                              stats, std::move(e.openCells));
+                              stats, std::move(e.openCells), &refineCache.changedZ);
+    stats.continuedCells += added;
+    // Every open cell is unmarked when reported and gets marked, so each round adds cells; should one
+    // add none, the next round contours every chunk again instead of taking any as it was.
+    if (added == 0) refineCache.chunks.reset();
     stats.samplingSeconds += since(closeStart);
   }
   report(1.0);

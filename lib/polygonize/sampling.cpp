@@ -532,7 +532,8 @@ ZRange sampledCells(const PolygonizeOptions& options, int nz) {
 std::int64_t closeSurfaces(const FieldSampler& sampler, const GridSpec& grid,
                            const std::vector<double>& isoValues, const PolygonizeOptions& options,
                            const ProgressReport& report, double progress, NodeStore& store,
-                           PolygonizeStats& stats, std::vector<std::array<int, 3>> cells) {
+                           PolygonizeStats& stats, std::vector<std::array<int, 3>> cells,
+                           std::vector<char>* changedZ) {
   BatchSampler batch(sampler, grid, store, stats, options, [&] {
     if (report) report(progress);
   });
@@ -549,6 +550,7 @@ std::int64_t closeSurfaces(const FieldSampler& sampler, const GridSpec& grid,
     for (const auto& c : cells) {
       if (store.cellMarked(c[0], c[1], c[2])) continue;
       store.markCell(c[0], c[1], c[2]);
+      if (changedZ != nullptr) (*changedZ)[static_cast<std::size_t>(c[2])] = 1;
       for (int corner = 0; corner < 8; ++corner) {
         batch.request(c[0] + (corner & 1), c[1] + ((corner >> 1) & 1), c[2] + ((corner >> 2) & 1));
       }

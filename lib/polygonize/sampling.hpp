@@ -60,10 +60,12 @@ void appendOpenNeighbours(const NodeStore& store, const std::array<int, 3>& cell
 /// Continuation where the adaptive pass left a surface open (|∇f| exceeded the Lipschitz bound):
 /// marks and samples the given cells, then every unmarked cell the surface enters from a marked
 /// one, until every surface is closed (cells outside sampledCells(options, nz) are left: another slab's).
-/// Returns the number of cells added.
+/// Returns the number of cells added; `changedZ` (when not null, one entry per cell layer) gets 1 at the
+/// layer of every cell it marks.
 std::int64_t closeSurfaces(const FieldSampler& sampler, const GridSpec& grid,
                            const std::vector<double>& isoValues, const PolygonizeOptions& options,
                            const ProgressReport& report, double progress, NodeStore& store,
-                           PolygonizeStats& stats, std::vector<std::array<int, 3>> cells);
+                           PolygonizeStats& stats, std::vector<std::array<int, 3>> cells,
+                           std::vector<char>* changedZ = nullptr);
 
 }  // namespace duplexfit::detail

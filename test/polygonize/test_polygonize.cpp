@@ -411,6 +411,7 @@ TEST_SUITE("polygonize") {
     const PolygonizeResult full = polygonize(samplerOf(steep), g, {0.0, 0.01}, fullMode());
     const PolygonizeResult adaptive = polygonize(samplerOf(steep), g, {0.0, 0.01});
     CHECK(adaptive.stats.continuedCells > 0);
+    CHECK(adaptive.stats.reusedChunks > 0);  // the chunks away from the continued cells are not contoured again
     CHECK(adaptive.stats.evaluatedNodes < full.stats.evaluatedNodes);
     for (std::size_t q = 0; q < 2; ++q) {
       CAPTURE(q);
