@@ -538,6 +538,7 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
                    {"evaluated_fraction", report.gridStats.evaluatedFraction()},
                    {"box_growths", report.boxGrowths},
                    {"continued_cells", report.gridStats.continuedCells},
+                   {"reused_chunks", report.gridStats.reusedChunks},
                    {"refinement", refinementJson(report.gridStats)},
                    {"touches_boundary", report.touchesBoundary},
                    {"sampler_seconds", report.gridStats.samplerSeconds},
