@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numeric>
 #include <string>
 #include <vector>
@@ -16,6 +17,7 @@
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/neighbors.hpp"
+#include "spatial/morton.hpp"
 
 
 
@@ -234,8 +236,15 @@ const Eigen::VectorXd& WindingNumber::areas() const noexcept { return impl_->are
 
 Eigen::VectorXd WindingNumber::evaluate(const Points& queries) const {
   Eigen::VectorXd out(queries.rows());
+  // In Morton order, so that consecutive queries walk the same nodes (each value is its own query's, so
+  // the order changes no result).
+  const std::vector<std::uint32_t> order = detail::processingOrder(queries, 4096);
+  const auto n = static_cast<std::int64_t>(queries.rows());
 #pragma omp parallel for schedule(dynamic, 64)
-  for (Eigen::Index i = 0; i < queries.rows(); ++i) out[i] = impl_->at(queries.row(i).transpose());
+  for (std::int64_t s = 0; s < n; ++s) {
+    const auto i = static_cast<Eigen::Index>(order.empty() ? s : static_cast<std::int64_t>(order[static_cast<std::size_t>(s)]));
+    out[i] = impl_->at(queries.row(i).transpose());
+  }
   return out;
 }
 
