@@ -27,6 +27,9 @@ std::size_t envSize(const char* name, std::size_t fallback) {
 
 bool isPowerOfTwo(std::size_t x) { return x != 0 && (x & (x - 1)) == 0; }
 
+/// Centres a step of the SIMD field kernels at the device's native float vector: 16 (AVX-512) or 8.
+int nativeFieldWidth(const DeviceInfo& info) { return info.nativeFloatWidth >= 16 ? 16 : 8; }
+
 LaunchParams chooseParams(const DeviceInfo& info) {
   LaunchParams p;
   if (info.type == DeviceType::Cpu) {
@@ -42,7 +45,7 @@ LaunchParams chooseParams(const DeviceInfo& info) {
     // where the device's native float vector is that wide (AVX-512): another 1.25x (value) and 1.3x
     // (value and gradient) on this project's Zen 5 machine (docs/benchmarks.md).
     p.fieldVector = true;
-    p.fieldWidth = info.nativeFloatWidth >= 16 ? 16 : 8;
+    p.fieldWidth = nativeFieldWidth(info);
   } else {
     p.workGroup = 256;
     p.chunk = 512;
@@ -64,7 +67,7 @@ LaunchParams chooseParams(const DeviceInfo& info) {
       throw InvalidArgument("DUPLEXFIT_FIELD_KERNEL='" + mode + "' must be vector, vector8, vector16 or scalar");
     }
     p.fieldVector = mode != "scalar";
-    if (mode == "vector") p.fieldWidth = info.nativeFloatWidth >= 16 ? 16 : 8;
+    if (mode == "vector") p.fieldWidth = nativeFieldWidth(info);
     if (mode == "vector8") p.fieldWidth = 8;
     if (mode == "vector16") p.fieldWidth = 16;
   }
