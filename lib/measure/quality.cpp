@@ -11,7 +11,10 @@
 
 namespace duplexfit {
 
-bool float32Degenerate(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+namespace {
+
+// The rule as stated, on the rounded corners.
+bool float32DegenerateRounded(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
   const Eigen::Vector3f fa = a.cast<float>(), fb = b.cast<float>(), fc = c.cast<float>();
   if (fa == fb || fb == fc || fa == fc) return true;
   const Eigen::Vector3f n = (fb - fa).cross(fc - fa);
@@ -19,6 +22,37 @@ bool float32Degenerate(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const
   const Eigen::Vector3d da = fa.cast<double>(), db = fb.cast<double>(), dc = fc.cast<double>();
   const double longest2 = std::max({(db - da).squaredNorm(), (dc - da).squaredNorm(), (dc - db).squaredNorm()});
   return !((db - da).cross(dc - da).norm() > 1e-12 * longest2);
+}
+
+}  // namespace
+
+bool float32Degenerate(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  // Most triangles of a mesh are far from degenerate, and rounding to float cannot make them so: decide
+  // those from the double corners (this runs for every face, several times, in cleaning and projection).
+  // Rounding moves a corner by at most eta = sqrt(3) 2^-24 m (+ 1e-44 for subnormal floats), m the largest
+  // |coordinate|; an edge then moves by 2 eta, so the rounded triangle's cross product is within
+  // 2 eta (|e1| + |e2|) + 4 eta^2 of this one's. With s >= the perimeter (s^2 = 3 P, P the sum of squared
+  // edges), |e1 x e2| > 1e-5 s^2 + 16 eta s + 16 eta^2 + 1e-43 leaves the rounded cross product above
+  // 6e-7 |e1'| |e2'| + 1e-44, more than float arithmetic's rounding can cancel to zero in all three
+  // components, and far above the rule's 1e-12 (longest edge)^2; the corners are then distinct too (equal
+  // ones give a zero cross product). The slack covers the double rounding here. Anything else, NaN and
+  // coordinates beyond float's range included, takes the rule as stated (test_check: both agree).
+  const double e1x = b.x() - a.x(), e1y = b.y() - a.y(), e1z = b.z() - a.z();
+  const double e2x = c.x() - a.x(), e2y = c.y() - a.y(), e2z = c.z() - a.z();
+  const double e3x = c.x() - b.x(), e3y = c.y() - b.y(), e3z = c.z() - b.z();
+  const double nx = e1y * e2z - e1z * e2y, ny = e1z * e2x - e1x * e2z, nz = e1x * e2y - e1y * e2x;
+  const double cross2 = nx * nx + ny * ny + nz * nz;
+  const double p = e1x * e1x + e1y * e1y + e1z * e1z + e2x * e2x + e2y * e2y + e2z * e2z + e3x * e3x +
+                   e3y * e3y + e3z * e3z;
+  const double m = std::max({std::abs(a.x()), std::abs(a.y()), std::abs(a.z()), std::abs(b.x()), std::abs(b.y()),
+                             std::abs(b.z()), std::abs(c.x()), std::abs(c.y()), std::abs(c.z())});
+  if (m < 1e37 && p > 1e-30 && p < 1e60) {
+    const double eta = 1.1e-7 * m + 1e-44;
+    const double s = std::sqrt(3.0 * p);
+    const double t = 3e-5 * p + 16.0 * eta * s + 16.0 * eta * eta + 1e-43;
+    if (cross2 > t * t) return false;
+  }
+  return float32DegenerateRounded(a, b, c);
 }
 
 double minAngleDegrees(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {

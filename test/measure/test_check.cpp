@@ -6,8 +6,10 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
-#include <limits>
+#include <cmath>
 #include <fstream>
+#include <limits>
+#include <random>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -63,6 +65,18 @@ Mesh splitFirstEdge(const Mesh& m, double t) {
     for (int k = 0; k < 3; ++k) r.faces(static_cast<Eigen::Index>(f), k) = faces[f][static_cast<std::size_t>(k)];
   }
   return r;
+}
+
+/// float32Degenerate's rule as documented, computed only on the rounded corners (the library decides most
+/// triangles from the double corners first; the two must agree everywhere).
+bool roundedRule(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const Eigen::Vector3f fa = a.cast<float>(), fb = b.cast<float>(), fc = c.cast<float>();
+  if (fa == fb || fb == fc || fa == fc) return true;
+  const Eigen::Vector3f n = (fb - fa).cross(fc - fa);
+  if (n.x() == 0.0f && n.y() == 0.0f && n.z() == 0.0f) return true;
+  const Eigen::Vector3d da = fa.cast<double>(), db = fb.cast<double>(), dc = fc.cast<double>();
+  const double longest2 = std::max({(db - da).squaredNorm(), (dc - da).squaredNorm(), (dc - db).squaredNorm()});
+  return !((db - da).cross(dc - da).norm() > 1e-12 * longest2);
 }
 
 }  // namespace
@@ -294,6 +308,39 @@ TEST_CASE("check: a triangle degenerate in float32 is an error, slivers above th
     CHECK(minAngleDegrees(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 0)) ==
           doctest::Approx(45.0));
   }
+}
+
+TEST_CASE("check: float32Degenerate agrees with its rule on the rounded corners, near the boundary too") {
+  std::mt19937_64 rng(20261205);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::size_t degenerate = 0, mismatches = 0;
+  const std::size_t n = 400000;
+  for (std::size_t i = 0; i < n; ++i) {
+    // Offsets from 0 to 1e8, edges from 1e-25 to 1e5, some nearly collinear (the third edge a multiple
+    // of the first plus t times another, t from 1e-20 to 1), some a float ulp apart, some NaN or infinite.
+    const double offset = i % 3 == 0 ? 0.0 : std::pow(10.0, 4.0 + 4.0 * u(rng));
+    const double scale = std::pow(10.0, -10.0 + 15.0 * u(rng));
+    const Eigen::Vector3d a = offset * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    const Eigen::Vector3d d1(u(rng), u(rng), u(rng));
+    Eigen::Vector3d d2(u(rng), u(rng), u(rng));
+    const double t = std::pow(10.0, -10.0 + 10.0 * u(rng));
+    if (i % 2 == 0) d2 = u(rng) * d1 + t * d2;
+    const Eigen::Vector3d b = a + scale * d1;
+    Eigen::Vector3d c = a + scale * d2;
+    if (i % 11 == 0) {
+      c = b;
+      c[static_cast<Eigen::Index>(i % 3)] = std::nextafter(static_cast<float>(b[static_cast<Eigen::Index>(i % 3)]), 1e30f);
+    }
+    Eigen::Vector3d a2 = a;
+    if (i % 97 == 0) a2.x() = i % 2 == 0 ? std::numeric_limits<double>::quiet_NaN() : std::numeric_limits<double>::infinity();
+    const bool rule = roundedRule(a2, b, c);
+    degenerate += rule ? 1 : 0;
+    mismatches += rule != float32Degenerate(a2, b, c) ? 1 : 0;
+  }
+  CHECK(mismatches == 0);
+  // Both kinds occur, many of each.
+  CHECK(degenerate > n / 10);
+  CHECK(degenerate < n - n / 10);
 }
 
 }  // TEST_SUITE
