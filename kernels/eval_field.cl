@@ -82,11 +82,53 @@ inline real dpx_hsum(const realv v) {
 #error "FIELD_WIDTH must be 8 or 16"
 #endif
 
+/* ---- Coarse levels with large weights in double (DPX_COARSE_DOUBLE: devices with fp64) ----
+ * A term w (1 - r)^4 (4r + 1) computed in float carries an error of about 1e-7 |w|, and the coarse levels'
+ * weights are of order 1-10 (ill-conditioned ones up to 80): in float the sum's error floor was 2.8e-6
+ * of the box on fandisk_550k and 4e-5 on thin_torus_20k, whatever the order of the additions. The
+ * evaluator gives the levels with few centres whose largest |w| exceeds a bound (field_evaluator.cpp,
+ * kDoubleLevelWeight, kDoubleLevelMaxCentres) a copy in double: dlevel[l] is the offset of level l's block in dcentres (sigma, 1/sigma, then x, y, z, w
+ * arrays of the level's size in the float arrays' order), 0xffffffff for a level summed in float. Those
+ * levels are summed FIELD_WIDTH / 2 centres a step (the same register width), over the same runs of
+ * cells, into sums kept in double that start at f0; the float levels' sums are added to them at the end. */
+#ifdef DPX_COARSE_DOUBLE
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+typedef double dreal;
+#if FIELD_WIDTH == 16
+typedef double8 dblv;
+typedef long8 dmaskv;
+#define DPX_DVLOAD vload8
+#define DPX_DWIDTH 8
+#define DPX_DLANE_INDEX (dmaskv)(0, 1, 2, 3, 4, 5, 6, 7)
+inline double dpx_dhsum(const dblv v) {
+  const double4 h = v.lo + v.hi;
+  return (h.s0 + h.s2) + (h.s1 + h.s3);
+}
+#else
+typedef double4 dblv;
+typedef long4 dmaskv;
+#define DPX_DVLOAD vload4
+#define DPX_DWIDTH 4
+#define DPX_DLANE_INDEX (dmaskv)(0, 1, 2, 3)
+inline double dpx_dhsum(const dblv v) { return (v.s0 + v.s2) + (v.s1 + v.s3); }
+#endif
+#else
+typedef real dreal; /* unused: no level is given a double block */
+#endif
+
 inline void dpx_field_point_v8(const real x, const real y, const real z, const uint nlevels,
                                __global const real* params, __global const uint* dims,
                                __global const uint* cell_start, __global const real* centres, const real f0,
-                               const int k, real* acc) {
+                               __global const uint* dlevel, __global const dreal* dcentres, const int k,
+                               real* acc) {
+#ifdef DPX_COARSE_DOUBLE
+  double dsum[10] = {f0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+  real sum[10] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+  const dmaskv dlane = DPX_DLANE_INDEX;
+  const double xd = x, yd = y, zd = z;
+#else
   real sum[10] = {f0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+#endif
   const maskv lane = DPX_LANE_INDEX;
   for (uint l = 0; l < nlevels; ++l) {
     __global const real* p = params + 7 * l;
@@ -104,6 +146,72 @@ inline void dpx_field_point_v8(const real x, const real y, const real z, const u
     dpx_x_span(x, p, nx, &x0, &x1);
     if (x0 > x1) continue;
     const int cy = (int)floor(fy), cz = (int)floor(fz);
+#ifdef DPX_COARSE_DOUBLE
+    if (dlevel[l] != 0xffffffffu) {
+      __global const double* dc = dcentres + dlevel[l];
+      const double sd = dc[0], isd = dc[1];
+      __global const double* qx = dc + 2;
+      __global const double* qy = qx + n;
+      __global const double* qz = qy + n;
+      __global const double* qw = qz + n;
+      const double s2d = sd * sd;
+      const double hd = 20.0 * isd * isd;
+      dblv f = 0, gx = 0, gy = 0, gz = 0;
+      dblv hxx = 0, hxy = 0, hxz = 0, hyy = 0, hyz = 0, hzz = 0;
+      for (int iz = max(cz - 1, 0); iz <= min(cz + 1, nz - 1); ++iz) {
+        for (int iy = max(cy - 1, 0); iy <= min(cy + 1, ny - 1); ++iy) {
+          const uint row = cs_off + (uint)((iz * ny + iy) * nx);
+          const uint b = cell_start[row + (uint)x0];
+          const uint e = cell_start[row + (uint)x1 + 1];
+          for (uint j = b; j < e; j += DPX_DWIDTH) {
+            const dmaskv valid = dlane < (dmaskv)((long)(e - j));
+            const dblv ux = select((dblv)sd, xd - DPX_DVLOAD(0, qx + j), valid);
+            const dblv uy = select((dblv)sd, yd - DPX_DVLOAD(0, qy + j), valid);
+            const dblv uz = select((dblv)sd, zd - DPX_DVLOAD(0, qz + j), valid);
+            const dblv d2 = ux * ux + uy * uy + uz * uz;
+            const dmaskv inside = d2 < (dblv)s2d;
+            const dblv w = select((dblv)0, DPX_DVLOAD(0, qw + j), inside);
+            const dblv rho = sqrt(d2);
+            const dblv r = rho * isd;
+            const dblv t = fmax((dblv)1 - r, (dblv)0);
+            const dblv t2 = t * t;
+            f += w * t2 * t2 * ((dblv)4 * r + (dblv)1);
+            if (k >= 4) {
+              const dblv g = -w * hd * t2 * t;
+              gx += g * ux;
+              gy += g * uy;
+              gz += g * uz;
+            }
+            if (k >= 10) {
+              const dblv a = w * hd * t2;
+              const dblv c = select((dblv)0, (dblv)3 * r / d2, rho > (dblv)0);
+              hxx += a * (c * ux * ux - t);
+              hyy += a * (c * uy * uy - t);
+              hzz += a * (c * uz * uz - t);
+              hxy += a * c * ux * uy;
+              hxz += a * c * ux * uz;
+              hyz += a * c * uy * uz;
+            }
+          }
+        }
+      }
+      dsum[0] += dpx_dhsum(f);
+      if (k >= 4) {
+        dsum[1] += dpx_dhsum(gx);
+        dsum[2] += dpx_dhsum(gy);
+        dsum[3] += dpx_dhsum(gz);
+      }
+      if (k >= 10) {
+        dsum[4] += dpx_dhsum(hxx);
+        dsum[5] += dpx_dhsum(hxy);
+        dsum[6] += dpx_dhsum(hxz);
+        dsum[7] += dpx_dhsum(hyy);
+        dsum[8] += dpx_dhsum(hyz);
+        dsum[9] += dpx_dhsum(hzz);
+      }
+      continue;
+    }
+#endif
     const real s2 = sigma * sigma;
     const real h_scale = (real)20 * inv_sigma * inv_sigma;
     realv f = 0, gx = 0, gy = 0, gz = 0;
@@ -161,10 +269,28 @@ inline void dpx_field_point_v8(const real x, const real y, const real z, const u
       sum[9] += dpx_hsum(hzz);
     }
   }
+#ifdef DPX_COARSE_DOUBLE
+  for (int c = 0; c < k; ++c) acc[c] = (real)(dsum[c] + (double)sum[c]);
+#else
   for (int c = 0; c < k; ++c) acc[c] = sum[c];
+#endif
 }
 
-DPX_EVAL_KERNEL(eval_field_value_v8, dpx_field_point_v8, 1)
-DPX_EVAL_KERNEL(eval_field_gradient_v8, dpx_field_point_v8, 4)
-DPX_EVAL_KERNEL(eval_field_hessian_v8, dpx_field_point_v8, 10)
+/* The _v8 entry points: the arguments of DPX_EVAL_KERNEL's and, before out, dlevel and dcentres. */
+#define DPX_EVAL_KERNEL_V8(name, K)                                                                      \
+  __kernel void name(const uint nq, __global const real* queries, const uint nlevels,                    \
+                     __global const real* params, __global const uint* dims,                             \
+                     __global const uint* cell_start, __global const real* centres, const real f0,       \
+                     __global const uint* dlevel, __global const dreal* dcentres, __global real* out) {  \
+    const uint q = get_global_id(0);                                                                     \
+    if (q >= nq) return;                                                                                 \
+    real acc[10];                                                                                        \
+    dpx_field_point_v8(queries[3 * q], queries[3 * q + 1], queries[3 * q + 2], nlevels, params, dims,    \
+                       cell_start, centres, f0, dlevel, dcentres, K, acc);                               \
+    for (int c = 0; c < K; ++c) out[(ulong)K * q + (ulong)c] = acc[c];                                   \
+  }
+
+DPX_EVAL_KERNEL_V8(eval_field_value_v8, 1)
+DPX_EVAL_KERNEL_V8(eval_field_gradient_v8, 4)
+DPX_EVAL_KERNEL_V8(eval_field_hessian_v8, 10)
 #endif /* REAL_IS_DOUBLE */

@@ -85,7 +85,12 @@ struct DeviceTuning {
   /// Centres a step of the SIMD field kernels: 16 where the device's native float vector is 16 wide (AVX-512),
   /// else 8; 1 with the scalar kernel.
   int fieldWidth = 0;
-  /// "wg=… chunk=… lanes=… groups=… reductions=chunk|group field=vector16|vector8|scalar", or "reference" for
+  /// The SIMD kernels sum the levels with large weights (the coarse ones) in double, the others in float
+  /// (devices with fp64; DUPLEXFIT_FIELD_COARSE=double|float overrides): ≤ 1e-6 of the box where float
+  /// alone left 2.5e-6 to 4e-5 (docs/method.md §6).
+  bool fieldCoarseDouble = false;
+  /// "wg=… chunk=… lanes=… groups=… reductions=chunk|group field=vector16|vector8|scalar" (with "+double"
+  /// where fieldCoarseDouble), or "reference" for
   /// the reference device.
   std::string describe() const;
 };

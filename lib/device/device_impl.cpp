@@ -46,6 +46,9 @@ LaunchParams chooseParams(const DeviceInfo& info) {
     // (value and gradient) on this project's Zen 5 machine (docs/benchmarks.md).
     p.fieldVector = true;
     p.fieldWidth = nativeFieldWidth(info);
+    // Levels whose weights are large summed in double (kernels/eval_field.cl): the float sum's error floor
+    // was 2.5e-6 of the box on fandisk_550k, 4e-5 on thin_torus_20k (docs/method.md section 6).
+    p.fieldCoarseDouble = info.fp64;
   } else {
     p.workGroup = 256;
     p.chunk = 512;
@@ -53,6 +56,7 @@ LaunchParams chooseParams(const DeviceInfo& info) {
     p.groups = std::max<std::size_t>(64, 8 * info.computeUnits);
     p.chunkReductions = false;
     p.fieldVector = false;  // a GPU's lanes are its work-items: one query a work-item
+    p.fieldCoarseDouble = false;
   }
   if (const char* v = std::getenv("DUPLEXFIT_REDUCTIONS"); v != nullptr && *v != '\0') {
     const std::string mode = v;
@@ -71,6 +75,17 @@ LaunchParams chooseParams(const DeviceInfo& info) {
     if (mode == "vector8") p.fieldWidth = 8;
     if (mode == "vector16") p.fieldWidth = 16;
   }
+  if (const char* v = std::getenv("DUPLEXFIT_FIELD_COARSE"); v != nullptr && *v != '\0') {
+    const std::string mode = v;
+    if (mode != "double" && mode != "float") {
+      throw InvalidArgument("DUPLEXFIT_FIELD_COARSE='" + mode + "' must be double or float");
+    }
+    if (mode == "double" && !info.fp64) {
+      throw InvalidArgument("DUPLEXFIT_FIELD_COARSE=double: device '" + info.name + "' has no fp64");
+    }
+    p.fieldCoarseDouble = mode == "double";
+  }
+  p.fieldCoarseDouble = p.fieldCoarseDouble && p.fieldVector;
   p.workGroup = envSize("DUPLEXFIT_WG_SIZE", p.workGroup);
   p.chunk = envSize("DUPLEXFIT_CHUNK", p.chunk);
   p.lanes = envSize("DUPLEXFIT_LANES", p.lanes);
@@ -94,6 +109,7 @@ DeviceTuning LaunchParams::tuning() const {
   t.chunkReductions = chunkReductions;
   t.fieldVector = fieldVector;
   t.fieldWidth = fieldVector ? fieldWidth : 1;
+  t.fieldCoarseDouble = fieldVector && fieldCoarseDouble;
   return t;
 }
 
@@ -148,6 +164,9 @@ std::string DeviceImpl::programSource(const std::string& program, Precision prec
   }
   src << "#define WG " << params_.workGroup << "\n#define CHUNK " << params_.chunk << "\n#define LANES "
       << params_.lanes << "\n#define FIELD_WIDTH " << params_.fieldWidth << "\n";
+  if (program == "field" && precision == Precision::Float && params_.fieldCoarseDouble) {
+    src << "#define DPX_COARSE_DOUBLE 1\n";
+  }
   for (const std::string& file : it->second) {
     src << "// ---- " << file << ".cl\n" << kernelSource(file) << "\n";
   }

@@ -41,12 +41,19 @@ struct EvaluatorImpl {
   /// field's 104 MB of doubles grew again for the finest level, 0.27-0.8 s of fresh pages and copies).
   bool soa = false;
   std::vector<float> soaF;
+  /// With soa, on a device with fp64 (LaunchParams::fieldCoarseDouble): the levels whose largest |w|
+  /// exceeds kDoubleLevelWeight also in double, block by block (σ, 1/σ, then x, y, z, w arrays in the
+  /// float arrays' order), which the SIMD kernels sum in double; dlevel[k] is level k's block offset in
+  /// soaD, or kFloatLevel.
+  bool coarseDouble = false;
+  std::vector<double> soaD;
+  std::vector<cl_uint> dlevel;
   /// A device copy of one host array: `capacity` elements allocated, the first `uploaded` current.
   struct DeviceArray {
     cl::Buffer buffer;
     std::size_t capacity = 0, uploaded = 0;
   };
-  DeviceArray paramsBuf, dimsBuf, cellStartBuf, centresBuf;
+  DeviceArray paramsBuf, dimsBuf, cellStartBuf, centresBuf, dlevelBuf, dcentresBuf;
   /// The query and result buffers of evaluateRaw, kept between calls (used under the device's launch
   /// mutex): a new pair per chunk cost the driver fresh pages every time (PoCL allocates a buffer's host
   /// memory when it is first used and frees it with the buffer).
@@ -70,6 +77,17 @@ constexpr std::size_t kChunk = std::size_t{1} << 20;
 /// Reals past the last centre in the device buffer: the SIMD kernels (kernels/eval_field.cl, _v8) read, and
 /// mask, up to FIELD_WIDTH − 1 ≤ 15 reals past the last weight.
 constexpr std::size_t kCentrePad = 4 * 8;
+/// A level of at most kDoubleLevelMaxCentres centres whose largest |weight| exceeds kDoubleLevelWeight is
+/// summed in double by the SIMD kernels (docs/method.md §6). Measured (float terms against double at 200k
+/// zero-mesh vertices of six fits): a level's float error is about 0.4-0.8e-6 |w|max (normalised units),
+/// and the coarsest levels carry the largest weights (fandisk_550k: 2.95 and 1.26 at levels 1 and 2, whose
+/// float error was 2.4e-6 and 1e-6 of the box). A level with few centres costs little in double; the next
+/// one (857 centres at fandisk_550k) cost 1.25x the whole evaluation where levels 1-2 cost 1.05-1.08x.
+constexpr double kDoubleLevelWeight = 0.25;
+constexpr std::size_t kDoubleLevelMaxCentres = 256;
+constexpr cl_uint kFloatLevel = 0xffffffffu;
+/// Doubles past the last block: the kernels read, and mask, up to 7 past a row.
+constexpr std::size_t kDoublePad = 8;
 
 void addLevel(detail::EvaluatorImpl& e, const FieldLevel& level) {
   const Points& c = level.centres;
@@ -124,6 +142,22 @@ void addLevel(detail::EvaluatorImpl& e, const FieldLevel& level) {
   if (e.soa) {
     e.soaF.resize(4 * (centreBase + n));
     float* out = e.soaF.data() + 4 * centreBase;
+    const bool inDouble = e.coarseDouble && n > 0 && n <= kDoubleLevelMaxCentres &&
+                          level.weights.cwiseAbs().maxCoeff() > kDoubleLevelWeight;
+    double* outD = nullptr;
+    if (inDouble) {
+      const std::size_t block = e.soaD.size();
+      if (block + 2 + 4 * n > std::numeric_limits<cl_uint>::max()) {
+        throw InvalidArgument("FieldEvaluator: the field's double levels are too large for 32-bit indices");
+      }
+      e.soaD.resize(block + 2 + 4 * n);
+      e.soaD[block] = level.sigma;
+      e.soaD[block + 1] = 1.0 / level.sigma;
+      outD = e.soaD.data() + block + 2;
+      e.dlevel.push_back(static_cast<cl_uint>(block));
+    } else {
+      e.dlevel.push_back(kFloatLevel);
+    }
     for (std::size_t j = n; j-- > 0;) {
       const std::size_t slot = --start[cellOf[j] + 1];
       const auto i = static_cast<Eigen::Index>(j);
@@ -131,6 +165,12 @@ void addLevel(detail::EvaluatorImpl& e, const FieldLevel& level) {
       out[n + slot] = static_cast<float>(c(i, 1));
       out[2 * n + slot] = static_cast<float>(c(i, 2));
       out[3 * n + slot] = static_cast<float>(level.weights[i]);
+      if (outD != nullptr) {
+        outD[slot] = c(i, 0);
+        outD[n + slot] = c(i, 1);
+        outD[2 * n + slot] = c(i, 2);
+        outD[3 * n + slot] = level.weights[i];
+      }
     }
   } else {
     e.packed.resize(4 * (centreBase + n));
@@ -210,7 +250,13 @@ std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u,
         detail::setArgs(kern, name, static_cast<cl_uint>(m), qb, e.levels, e.paramsBuf.buffer, e.dimsBuf.buffer,
                         e.cellStartBuf.buffer, e.centresBuf.buffer);
         detail::setRealArg(kern, 7, e.f0, e.precision, name);
-        detail::setArg(kern, 8, ob, name);
+        if (v8) {
+          detail::setArg(kern, 8, e.dlevelBuf.buffer, name);
+          detail::setArg(kern, 9, e.dcentresBuf.buffer, name);
+          detail::setArg(kern, 10, ob, name);
+        } else {
+          detail::setArg(kern, 8, ob, name);
+        }
         impl.launch(kern, m, impl.params().workGroup, name);
         DUPLEXFIT_CL_CHECK(impl.queue().enqueueReadBuffer(ob, CL_TRUE, 0, out.size() * sizeof(T), out.data()));
       }
@@ -263,6 +309,10 @@ void sync(detail::EvaluatorImpl& e, double reserve) {
     syncArray(e.device, e.paramsBuf, e.params, reserve, "field level parameters");
     syncArray(e.device, e.centresBuf, e.packed, reserve, "field centres", kCentrePad);
   }
+  if (soa) {
+    syncArray(e.device, e.dlevelBuf, e.dlevel, reserve, "field level precisions");
+    syncArray(e.device, e.dcentresBuf, e.soaD, reserve, "field centres in double", kDoublePad);
+  }
   syncArray(e.device, e.dimsBuf, e.dims, reserve, "field grid sizes");
   syncArray(e.device, e.cellStartBuf, e.cellStart, reserve, "field grid cells");
 }
@@ -287,6 +337,7 @@ FieldEvaluator::FieldEvaluator(const Device& device, const Normalization& normal
   e.norm = normalization;
   e.f0 = f0;
   e.soa = precision == Precision::Float && !device.isReference() && device.impl()->params().fieldVector;
+  e.coarseDouble = e.soa && device.impl()->params().fieldCoarseDouble && device.supportsDouble();
 }
 
 void FieldEvaluator::appendLevel(const FieldLevel& level) {

@@ -44,12 +44,20 @@ TEST_SUITE("device") {
     }
     // The field program at both SIMD widths, whatever the device's own (16 centres a step on a CPU without
     // AVX-512 must not warn about the float16 ABI either).
+    // With and without the coarse levels in double (DPX_COARSE_DOUBLE) where the device has fp64.
     for (const char* kernel : {"vector8", "vector16"}) {
-      CAPTURE(kernel);
-      setenv("DUPLEXFIT_FIELD_KERNEL", kernel, 1);
-      const Device d = Device::open(dev.info().spec);
-      unsetenv("DUPLEXFIT_FIELD_KERNEL");
-      CHECK_NOTHROW(d.impl()->program("field", Precision::Float, "-Werror"));
+      for (const char* coarse : {"float", "double"}) {
+        if (std::string(coarse) == "double" && !dev.info().fp64) continue;
+        CAPTURE(kernel);
+        CAPTURE(coarse);
+        setenv("DUPLEXFIT_FIELD_KERNEL", kernel, 1);
+        setenv("DUPLEXFIT_FIELD_COARSE", coarse, 1);
+        const Device d = Device::open(dev.info().spec);
+        unsetenv("DUPLEXFIT_FIELD_KERNEL");
+        unsetenv("DUPLEXFIT_FIELD_COARSE");
+        CHECK(d.tuning().fieldCoarseDouble == (std::string(coarse) == "double"));
+        CHECK_NOTHROW(d.impl()->program("field", Precision::Float, "-Werror"));
+      }
     }
   }
 

@@ -172,6 +172,64 @@ TEST_SUITE("field") {
     unsetenv("DUPLEXFIT_FIELD_KERNEL");
   }
 
+  TEST_CASE("field: the SIMD kernels sum the coarse levels with large weights in double, within 1e-6 of the box") {
+    DUPLEXFIT_OPENCL_DEVICE(dev);
+    if (!dev.tuning().fieldVector || !dev.info().fp64) {
+      MESSAGE("skipped: the test device runs the scalar field kernel or has no fp64");
+      return;
+    }
+    // A field shaped like a fit's hierarchy in the unit box (fandisk_550k's: σ_1 = 1.09, weights up to
+    // 2.95 and 1.26 at the two coarsest levels, a few tenths below): in float the coarse terms' rounding
+    // alone is about 1e-7 |w| each.
+    std::mt19937 rng(17);
+    std::uniform_real_distribution<double> u(-0.5, 0.5), s(-1.0, 1.0);
+    const int counts[5] = {24, 141, 857, 4000, 12000};
+    const double weights[5] = {3.0, 1.3, 0.2, 0.1, 0.05};
+    std::vector<FieldLevel> levels;
+    for (int k = 0; k < 5; ++k) {
+      FieldLevel l;
+      l.sigma = 1.09 / (1 << k);
+      l.centres.resize(counts[k], 3);
+      l.weights.resize(counts[k]);
+      for (int j = 0; j < counts[k]; ++j) {
+        l.centres.row(j) << u(rng), u(rng), u(rng);
+        l.weights[j] = weights[k] * s(rng);
+      }
+      levels.push_back(std::move(l));
+    }
+    const ImplicitField f(Normalization{}, -1.0, std::move(levels), {},
+                          Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-0.5), Eigen::Vector3d::Constant(0.5)));
+    Points q(4000, 3);
+    for (Eigen::Index i = 0; i < q.rows(); ++i) q.row(i) << u(rng), u(rng), u(rng);
+    std::vector<double> exact(static_cast<std::size_t>(q.rows()));
+    for (Eigen::Index i = 0; i < q.rows(); ++i) exact[static_cast<std::size_t>(i)] = f.value(q.row(i).transpose());
+    const auto largestError = [&](const Device& d) {
+      const Eigen::VectorXd v = f.evaluate(d, q, FieldDerivatives::None, Precision::Float).values;
+      double e = 0.0;
+      for (Eigen::Index i = 0; i < q.rows(); ++i) e = std::max(e, std::abs(v[i] - exact[static_cast<std::size_t>(i)]));
+      return e;  // the box side is 1
+    };
+    for (const char* kernel : {"vector8", "vector16"}) {
+      CAPTURE(kernel);
+      setenv("DUPLEXFIT_FIELD_KERNEL", kernel, 1);
+      const Device mixed = Device::open(dev.info().spec);
+      setenv("DUPLEXFIT_FIELD_COARSE", "float", 1);
+      const Device plain = Device::open(dev.info().spec);
+      unsetenv("DUPLEXFIT_FIELD_COARSE");
+      unsetenv("DUPLEXFIT_FIELD_KERNEL");
+      REQUIRE(mixed.tuning().fieldCoarseDouble);
+      CHECK(mixed.tuning().describe().find("+double") != std::string::npos);
+      CHECK_FALSE(plain.tuning().fieldCoarseDouble);
+      const double withDouble = largestError(mixed), inFloat = largestError(plain);
+      MESSAGE("largest |f - f_exact|: " << withDouble << " with the coarse levels in double, " << inFloat << " in float");
+      CHECK(withDouble <= 1e-6);
+      CHECK(inFloat > 1e-6);  // what the double levels remove: the test can tell them apart
+    }
+    setenv("DUPLEXFIT_FIELD_COARSE", "half", 1);
+    CHECK_THROWS_AS((void)Device::open(dev.info().spec), InvalidArgument);
+    unsetenv("DUPLEXFIT_FIELD_COARSE");
+  }
+
   TEST_CASE("field: levels too fine for a full cell table (wider x-cells, then deeper cells) match the brute-force sum") {
     // Clusters of centres spread over a large box with a small support: the evaluator's table of σ-deep,
     // σ/8-wide cells would pass 2^24 cells. Level 2 (σ = 0.004 over 1 × 1 × 0.26) fits with σ/4-wide
