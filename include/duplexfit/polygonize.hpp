@@ -153,6 +153,9 @@ struct PolygonizeStats {
   /// Chunks (layers of cells) of an extraction round taken as they were into the next round: those with no
   /// cell continued in or next to them.
   std::int64_t reusedChunks = 0;
+  /// Extraction rounds: 1, plus one for each round of continued cells (a round whose open cells were all
+  /// marked already, which a stale reused chunk would report, adds none and costs a full round more).
+  std::int64_t extractionRounds = 0;
   std::int64_t storageBytes = 0;   ///< memory held by the sampled node values (tiles + lattice)
   std::int64_t thinCells = 0;          ///< crossed cells with a node layer one node thick
   std::int64_t deviatingCells = 0;     ///< of those, the ones beyond refineTolerance (all of them without it)

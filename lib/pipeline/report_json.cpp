@@ -539,6 +539,7 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
                    {"box_growths", report.boxGrowths},
                    {"continued_cells", report.gridStats.continuedCells},
                    {"reused_chunks", report.gridStats.reusedChunks},
+                   {"extraction_rounds", report.gridStats.extractionRounds},
                    {"refinement", refinementJson(report.gridStats)},
                    {"touches_boundary", report.touchesBoundary},
                    {"sampler_seconds", report.gridStats.samplerSeconds},

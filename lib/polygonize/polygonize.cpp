@@ -309,6 +309,7 @@ PolygonizeResult polygonize(const FieldSampler& sampler, const GridSpec& grid,
     const auto extractStart = std::chrono::steady_clock::now();
     detail::Extraction e = detail::extractMeshes(store, grid, isoValues, options, sampler, stats, &refineCache);
     stats.extractionSeconds += since(extractStart);
+    ++stats.extractionRounds;
     if (e.openCells.empty()) {
       result.meshes = std::move(e.meshes);
       result.vertexKeys = std::move(e.vertexKeys);

@@ -399,6 +399,36 @@ TEST_SUITE("polygonize") {
     }
   }
 
+  TEST_CASE("polygonize: a repeated extraction reuses only the chunks whose layers and neighbours kept their cells") {
+    // A steep vertical disk (in the y-z plane) across several chunks of cell layers: the continued cells lie
+    // in many layers, and a chunk next to them reports open cells in its neighbour's layer. One round of
+    // continued cells closes the meshes, so two extractions; a reused chunk whose neighbour layer gained
+    // cells would report stale open cells (already marked), which costs a third, full extraction. The disk
+    // above the middle and its mirror image below: forgetting the layer above a chunk fails the first,
+    // forgetting the one below the second (both checked by mutation).
+    const GridSpec g = cube(1.0, 64);
+    const double h = g.cellSize()(0);
+    for (const double zc : {0.3, -0.3}) {
+      CAPTURE(zc);
+      const Field plate = [h, zc](const Eigen::Vector3d& x) {
+        return -std::max(std::abs(x(0) - 0.3) - 0.75 * h, std::hypot(x(1), x(2) - zc) - 0.3);
+      };
+      const Field steep = [plate](const Eigen::Vector3d& x) {
+        return 20.0 * unite(sphere(Eigen::Vector3d(0.02, -0.01, 0.0), 0.5), plate)(x);
+      };
+      const PolygonizeResult full = polygonize(samplerOf(steep), g, {0.0, 0.01}, fullMode());
+      const PolygonizeResult adaptive = polygonize(samplerOf(steep), g, {0.0, 0.01});
+      CHECK(adaptive.stats.continuedCells > 0);
+      CHECK(adaptive.stats.reusedChunks > 0);
+      CHECK(adaptive.stats.extractionRounds == 2);
+      CHECK(full.stats.extractionRounds == 1);
+      for (std::size_t q = 0; q < 2; ++q) {
+        CAPTURE(q);
+        CHECK(identical(adaptive.meshes[q], full.meshes[q]));
+      }
+    }
+  }
+
   TEST_CASE("polygonize: surfaces crossing skipped blocks of a too steep field are followed") {
     // |∇f| = 20 breaks the default Lipschitz bound 2: coarse blocks around the thin brim are
     // skipped, the extraction finds the surface leaving the refined cells, and the continuation
@@ -412,6 +442,7 @@ TEST_SUITE("polygonize") {
     const PolygonizeResult adaptive = polygonize(samplerOf(steep), g, {0.0, 0.01});
     CHECK(adaptive.stats.continuedCells > 0);
     CHECK(adaptive.stats.reusedChunks > 0);  // the chunks away from the continued cells are not contoured again
+    CHECK(full.stats.extractionRounds == 1);
     CHECK(adaptive.stats.evaluatedNodes < full.stats.evaluatedNodes);
     for (std::size_t q = 0; q < 2; ++q) {
       CAPTURE(q);
