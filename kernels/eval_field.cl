@@ -87,8 +87,9 @@ inline real dpx_hsum(const realv v) {
  * weights are of order 1-10 (ill-conditioned ones up to 80): in float the sum's error floor was 2.8e-6
  * of the box on fandisk_550k and 4e-5 on thin_torus_20k, whatever the order of the additions. The
  * evaluator gives the levels with few centres whose largest |w| exceeds a bound (field_evaluator.cpp,
- * kDoubleLevelWeight, kDoubleLevelMaxCentres) a copy in double: dlevel[l] is the offset of level l's block in dcentres (sigma, 1/sigma, then x, y, z, w
- * arrays of the level's size in the float arrays' order), 0xffffffff for a level summed in float. Those
+ * kDoubleLevelWeight, kDoubleLevelMaxCentres) a copy in double: dlevel[l] is the offset of level l's
+ * block in dcentres (sigma, 1/sigma, then x, y, z, w arrays of the level's size in the float arrays'
+ * order), 0xffffffff for a level summed in float. Those
  * levels are summed FIELD_WIDTH / 2 centres a step (the same register width), over the same runs of
  * cells, into sums kept in double that start at f0; the float levels' sums are added to them at the end. */
 #ifdef DPX_COARSE_DOUBLE

@@ -85,9 +85,10 @@ struct DeviceTuning {
   /// Centres a step of the SIMD field kernels: 16 where the device's native float vector is 16 wide (AVX-512),
   /// else 8; 1 with the scalar kernel.
   int fieldWidth = 0;
-  /// The SIMD kernels sum the levels with large weights (the coarse ones) in double, the others in float
-  /// (devices with fp64; DUPLEXFIT_FIELD_COARSE=double|float overrides): ≤ 1e-6 of the box where float
-  /// alone left 2.5e-6 to 4e-5 (docs/method.md §6).
+  /// The SIMD kernels sum the coarse levels with large weights (at most 256 centres, largest |w| above 0.25)
+  /// in double, the others in float (devices with fp64; DUPLEXFIT_FIELD_COARSE=double|float overrides):
+  /// fandisk_550k's largest error 2.85e-6 → 3.7e-7 of the box; a field with large weights at finer levels
+  /// keeps more (wheel_118k 9.5e-6; docs/method.md §6).
   bool fieldCoarseDouble = false;
   /// "wg=… chunk=… lanes=… groups=… reductions=chunk|group field=vector16|vector8|scalar" (with "+double"
   /// where fieldCoarseDouble), or "reference" for

@@ -46,8 +46,8 @@ LaunchParams chooseParams(const DeviceInfo& info) {
     // (value and gradient) on this project's Zen 5 machine (docs/benchmarks.md).
     p.fieldVector = true;
     p.fieldWidth = nativeFieldWidth(info);
-    // Levels whose weights are large summed in double (kernels/eval_field.cl): the float sum's error floor
-    // was 2.5e-6 of the box on fandisk_550k, 4e-5 on thin_torus_20k (docs/method.md section 6).
+    // The coarse levels with large weights summed in double (kernels/eval_field.cl): the float sum's error
+    // floor was 2.85e-6 of the box on fandisk_550k, 5e-5 on thin_torus_20k (docs/method.md section 6).
     p.fieldCoarseDouble = info.fp64;
   } else {
     p.workGroup = 256;

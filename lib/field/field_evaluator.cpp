@@ -41,10 +41,10 @@ struct EvaluatorImpl {
   /// field's 104 MB of doubles grew again for the finest level, 0.27-0.8 s of fresh pages and copies).
   bool soa = false;
   std::vector<float> soaF;
-  /// With soa, on a device with fp64 (LaunchParams::fieldCoarseDouble): the levels whose largest |w|
-  /// exceeds kDoubleLevelWeight also in double, block by block (σ, 1/σ, then x, y, z, w arrays in the
-  /// float arrays' order), which the SIMD kernels sum in double; dlevel[k] is level k's block offset in
-  /// soaD, or kFloatLevel.
+  /// With soa, on a device with fp64 (LaunchParams::fieldCoarseDouble): the levels of at most
+  /// kDoubleLevelMaxCentres centres whose largest |w| exceeds kDoubleLevelWeight also in double, block by
+  /// block (σ, 1/σ, then x, y, z, w arrays in the float arrays' order), which the SIMD kernels sum in
+  /// double; dlevel[k] is level k's block offset in soaD, or kFloatLevel.
   bool coarseDouble = false;
   std::vector<double> soaD;
   std::vector<cl_uint> dlevel;
