@@ -378,7 +378,13 @@ void Device::checkAllocation(std::uint64_t bytes, const std::string& what) const
   throw DeviceError(msg.str());
 }
 
-DeviceTuning Device::tuning() const { return impl_ == nullptr ? DeviceTuning{} : impl_->params().tuning(); }
+DeviceTuning Device::tuning() const {
+  if (impl_ == nullptr) return DeviceTuning{};
+  DeviceTuning t = impl_->params().tuning();
+  // The coarse levels go to double only where this handle may use it (DeviceOptions::allowFp64).
+  t.fieldCoarseDouble = t.fieldCoarseDouble && supportsDouble();
+  return t;
+}
 
 std::string DeviceTuning::describe() const {
   if (workGroup == 0) return "reference";

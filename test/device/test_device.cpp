@@ -102,6 +102,9 @@ TEST_SUITE("device") {
       CHECK(std::string(e.what()).find(dev.info().name) != std::string::npos);
     }
     CHECK_NOTHROW(DeviceVector(noFp64, 10, Precision::Float));
+    // Nor are a float field's coarse levels summed in double through it.
+    CHECK_FALSE(noFp64.tuning().fieldCoarseDouble);
+    CHECK(noFp64.tuning().describe().find("+double") == std::string::npos);
   }
 
   TEST_CASE("device: a buffer above the max allocation is refused with sizes in the message") {
