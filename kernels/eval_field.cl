@@ -117,6 +117,71 @@ inline double dpx_dhsum(const dblv v) { return (v.s0 + v.s2) + (v.s1 + v.s3); }
 typedef real dreal; /* unused: no level is given a double block */
 #endif
 
+/* One level's terms at the query (XQ, YQ, ZQ): over its 3 x 3 rows of cells around (cy, cz), the cells
+ * x0..x1 of each row (one contiguous run of centres), W centres a step in vectors VT (scalar ST, mask MT
+ * built from the lane indices LANE compared as IT, loads VLOAD) from the arrays PX, PY, PZ, PW; the lanes'
+ * sums (HSUM) are added to SUM[0..k). Lanes past the row (their values may be the next array's or the
+ * padding) sit outside the support. The float levels and, with DPX_COARSE_DOUBLE, the double ones. */
+#define DPX_LEVEL_SUM(ST, VT, MT, IT, VLOAD, W, LANE, HSUM, XQ, YQ, ZQ, PX, PY, PZ, PW, SIGMA, INV_SIGMA, SUM) \
+  do {                                                                                                    \
+    const ST sg_ = (SIGMA), isg_ = (INV_SIGMA);                                                           \
+    const ST s2_ = sg_ * sg_;                                                                             \
+    const ST hs_ = (ST)20 * isg_ * isg_;                                                                  \
+    VT f_ = 0, gx_ = 0, gy_ = 0, gz_ = 0;                                                                 \
+    VT hxx_ = 0, hxy_ = 0, hxz_ = 0, hyy_ = 0, hyz_ = 0, hzz_ = 0;                                        \
+    for (int iz = max(cz - 1, 0); iz <= min(cz + 1, nz - 1); ++iz) {                                      \
+      for (int iy = max(cy - 1, 0); iy <= min(cy + 1, ny - 1); ++iy) {                                    \
+        const uint row = cs_off + (uint)((iz * ny + iy) * nx);                                            \
+        const uint b = cell_start[row + (uint)x0];                                                        \
+        const uint e = cell_start[row + (uint)x1 + 1];                                                    \
+        for (uint j = b; j < e; j += (W)) {                                                               \
+          const MT valid = (LANE) < (MT)((IT)(e - j));                                                    \
+          const VT ux = select((VT)sg_, (XQ) - VLOAD(0, (PX) + j), valid);                                 \
+          const VT uy = select((VT)sg_, (YQ) - VLOAD(0, (PY) + j), valid);                                 \
+          const VT uz = select((VT)sg_, (ZQ) - VLOAD(0, (PZ) + j), valid);                                 \
+          const VT d2 = ux * ux + uy * uy + uz * uz;                                                      \
+          const MT inside = d2 < (VT)s2_;                                                                 \
+          const VT w = select((VT)0, VLOAD(0, (PW) + j), inside);                                         \
+          const VT rho = sqrt(d2);                                                                        \
+          const VT r = rho * isg_;                                                                        \
+          const VT t = fmax((VT)1 - r, (VT)0);                                                            \
+          const VT t2 = t * t;                                                                            \
+          f_ += w * t2 * t2 * ((VT)4 * r + (VT)1);                                                        \
+          if (k >= 4) {                                                                                   \
+            const VT g = -w * hs_ * t2 * t;                                                               \
+            gx_ += g * ux;                                                                                \
+            gy_ += g * uy;                                                                                \
+            gz_ += g * uz;                                                                                \
+          }                                                                                               \
+          if (k >= 10) {                                                                                  \
+            const VT a = w * hs_ * t2;                                                                    \
+            const VT c = select((VT)0, (VT)3 * r / d2, rho > (VT)0);                                      \
+            hxx_ += a * (c * ux * ux - t);                                                                \
+            hyy_ += a * (c * uy * uy - t);                                                                \
+            hzz_ += a * (c * uz * uz - t);                                                                \
+            hxy_ += a * c * ux * uy;                                                                      \
+            hxz_ += a * c * ux * uz;                                                                      \
+            hyz_ += a * c * uy * uz;                                                                      \
+          }                                                                                               \
+        }                                                                                                 \
+      }                                                                                                   \
+    }                                                                                                     \
+    (SUM)[0] += HSUM(f_);                                                                                 \
+    if (k >= 4) {                                                                                         \
+      (SUM)[1] += HSUM(gx_);                                                                              \
+      (SUM)[2] += HSUM(gy_);                                                                              \
+      (SUM)[3] += HSUM(gz_);                                                                              \
+    }                                                                                                     \
+    if (k >= 10) {                                                                                        \
+      (SUM)[4] += HSUM(hxx_);                                                                             \
+      (SUM)[5] += HSUM(hxy_);                                                                             \
+      (SUM)[6] += HSUM(hxz_);                                                                             \
+      (SUM)[7] += HSUM(hyy_);                                                                             \
+      (SUM)[8] += HSUM(hyz_);                                                                             \
+      (SUM)[9] += HSUM(hzz_);                                                                             \
+    }                                                                                                     \
+  } while (0)
+
 inline void dpx_field_point_v8(const real x, const real y, const real z, const uint nlevels,
                                __global const real* params, __global const uint* dims,
                                __global const uint* cell_start, __global const real* centres, const real f0,
@@ -150,125 +215,14 @@ inline void dpx_field_point_v8(const real x, const real y, const real z, const u
 #ifdef DPX_COARSE_DOUBLE
     if (dlevel[l] != 0xffffffffu) {
       __global const double* dc = dcentres + dlevel[l];
-      const double sd = dc[0], isd = dc[1];
       __global const double* qx = dc + 2;
-      __global const double* qy = qx + n;
-      __global const double* qz = qy + n;
-      __global const double* qw = qz + n;
-      const double s2d = sd * sd;
-      const double hd = 20.0 * isd * isd;
-      dblv f = 0, gx = 0, gy = 0, gz = 0;
-      dblv hxx = 0, hxy = 0, hxz = 0, hyy = 0, hyz = 0, hzz = 0;
-      for (int iz = max(cz - 1, 0); iz <= min(cz + 1, nz - 1); ++iz) {
-        for (int iy = max(cy - 1, 0); iy <= min(cy + 1, ny - 1); ++iy) {
-          const uint row = cs_off + (uint)((iz * ny + iy) * nx);
-          const uint b = cell_start[row + (uint)x0];
-          const uint e = cell_start[row + (uint)x1 + 1];
-          for (uint j = b; j < e; j += DPX_DWIDTH) {
-            const dmaskv valid = dlane < (dmaskv)((long)(e - j));
-            const dblv ux = select((dblv)sd, xd - DPX_DVLOAD(0, qx + j), valid);
-            const dblv uy = select((dblv)sd, yd - DPX_DVLOAD(0, qy + j), valid);
-            const dblv uz = select((dblv)sd, zd - DPX_DVLOAD(0, qz + j), valid);
-            const dblv d2 = ux * ux + uy * uy + uz * uz;
-            const dmaskv inside = d2 < (dblv)s2d;
-            const dblv w = select((dblv)0, DPX_DVLOAD(0, qw + j), inside);
-            const dblv rho = sqrt(d2);
-            const dblv r = rho * isd;
-            const dblv t = fmax((dblv)1 - r, (dblv)0);
-            const dblv t2 = t * t;
-            f += w * t2 * t2 * ((dblv)4 * r + (dblv)1);
-            if (k >= 4) {
-              const dblv g = -w * hd * t2 * t;
-              gx += g * ux;
-              gy += g * uy;
-              gz += g * uz;
-            }
-            if (k >= 10) {
-              const dblv a = w * hd * t2;
-              const dblv c = select((dblv)0, (dblv)3 * r / d2, rho > (dblv)0);
-              hxx += a * (c * ux * ux - t);
-              hyy += a * (c * uy * uy - t);
-              hzz += a * (c * uz * uz - t);
-              hxy += a * c * ux * uy;
-              hxz += a * c * ux * uz;
-              hyz += a * c * uy * uz;
-            }
-          }
-        }
-      }
-      dsum[0] += dpx_dhsum(f);
-      if (k >= 4) {
-        dsum[1] += dpx_dhsum(gx);
-        dsum[2] += dpx_dhsum(gy);
-        dsum[3] += dpx_dhsum(gz);
-      }
-      if (k >= 10) {
-        dsum[4] += dpx_dhsum(hxx);
-        dsum[5] += dpx_dhsum(hxy);
-        dsum[6] += dpx_dhsum(hxz);
-        dsum[7] += dpx_dhsum(hyy);
-        dsum[8] += dpx_dhsum(hyz);
-        dsum[9] += dpx_dhsum(hzz);
-      }
+      DPX_LEVEL_SUM(double, dblv, dmaskv, long, DPX_DVLOAD, DPX_DWIDTH, dlane, dpx_dhsum, xd, yd, zd, qx, qx + n,
+                    qx + 2 * n, qx + 3 * n, dc[0], dc[1], dsum);
       continue;
     }
 #endif
-    const real s2 = sigma * sigma;
-    const real h_scale = (real)20 * inv_sigma * inv_sigma;
-    realv f = 0, gx = 0, gy = 0, gz = 0;
-    realv hxx = 0, hxy = 0, hxz = 0, hyy = 0, hyz = 0, hzz = 0;
-    for (int iz = max(cz - 1, 0); iz <= min(cz + 1, nz - 1); ++iz) {
-      for (int iy = max(cy - 1, 0); iy <= min(cy + 1, ny - 1); ++iy) {
-        const uint row = cs_off + (uint)((iz * ny + iy) * nx);
-        const uint b = cell_start[row + (uint)x0];
-        const uint e = cell_start[row + (uint)x1 + 1];
-        for (uint j = b; j < e; j += FIELD_WIDTH) {
-          /* lanes past the row (their values may be the next array's or the padding) sit outside the support */
-          const maskv valid = lane < (maskv)((int)(e - j));
-          const realv ux = select((realv)sigma, x - DPX_VLOAD(0, px + j), valid);
-          const realv uy = select((realv)sigma, y - DPX_VLOAD(0, py + j), valid);
-          const realv uz = select((realv)sigma, z - DPX_VLOAD(0, pz + j), valid);
-          const realv d2 = ux * ux + uy * uy + uz * uz;
-          const maskv inside = d2 < (realv)s2;
-          const realv w = select((realv)0, DPX_VLOAD(0, pw + j), inside);
-          const realv rho = sqrt(d2);
-          const realv r = rho * inv_sigma;
-          const realv t = fmax((realv)1 - r, (realv)0);
-          const realv t2 = t * t;
-          f += w * t2 * t2 * ((realv)4 * r + (realv)1);
-          if (k >= 4) {
-            const realv g = -w * h_scale * t2 * t;
-            gx += g * ux;
-            gy += g * uy;
-            gz += g * uz;
-          }
-          if (k >= 10) {
-            const realv a = w * h_scale * t2;
-            const realv c = select((realv)0, (realv)3 * r / d2, rho > (realv)0);
-            hxx += a * (c * ux * ux - t);
-            hyy += a * (c * uy * uy - t);
-            hzz += a * (c * uz * uz - t);
-            hxy += a * c * ux * uy;
-            hxz += a * c * ux * uz;
-            hyz += a * c * uy * uz;
-          }
-        }
-      }
-    }
-    sum[0] += dpx_hsum(f);
-    if (k >= 4) {
-      sum[1] += dpx_hsum(gx);
-      sum[2] += dpx_hsum(gy);
-      sum[3] += dpx_hsum(gz);
-    }
-    if (k >= 10) {
-      sum[4] += dpx_hsum(hxx);
-      sum[5] += dpx_hsum(hxy);
-      sum[6] += dpx_hsum(hxz);
-      sum[7] += dpx_hsum(hyy);
-      sum[8] += dpx_hsum(hyz);
-      sum[9] += dpx_hsum(hzz);
-    }
+    DPX_LEVEL_SUM(real, realv, maskv, int, DPX_VLOAD, FIELD_WIDTH, lane, dpx_hsum, x, y, z, px, py, pz, pw, sigma,
+                  inv_sigma, sum);
   }
 #ifdef DPX_COARSE_DOUBLE
   for (int c = 0; c < k; ++c) acc[c] = (real)(dsum[c] + (double)sum[c]);
