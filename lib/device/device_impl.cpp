@@ -56,7 +56,6 @@ LaunchParams chooseParams(const DeviceInfo& info) {
     p.groups = std::max<std::size_t>(64, 8 * info.computeUnits);
     p.chunkReductions = false;
     p.fieldVector = false;  // a GPU's lanes are its work-items: one query a work-item
-    p.fieldCoarseDouble = false;
   }
   if (const char* v = std::getenv("DUPLEXFIT_REDUCTIONS"); v != nullptr && *v != '\0') {
     const std::string mode = v;
@@ -85,7 +84,7 @@ LaunchParams chooseParams(const DeviceInfo& info) {
     }
     p.fieldCoarseDouble = mode == "double";
   }
-  p.fieldCoarseDouble = p.fieldCoarseDouble && p.fieldVector;
+  p.fieldCoarseDouble = p.fieldCoarseDouble && p.fieldVector;  // the scalar kernel (GPUs) stays float
   p.workGroup = envSize("DUPLEXFIT_WG_SIZE", p.workGroup);
   p.chunk = envSize("DUPLEXFIT_CHUNK", p.chunk);
   p.lanes = envSize("DUPLEXFIT_LANES", p.lanes);
@@ -109,7 +108,7 @@ DeviceTuning LaunchParams::tuning() const {
   t.chunkReductions = chunkReductions;
   t.fieldVector = fieldVector;
   t.fieldWidth = fieldVector ? fieldWidth : 1;
-  t.fieldCoarseDouble = fieldVector && fieldCoarseDouble;
+  t.fieldCoarseDouble = fieldCoarseDouble;
   return t;
 }
 

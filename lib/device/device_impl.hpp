@@ -29,7 +29,7 @@ struct LaunchParams {
   int fieldWidth = 8;           ///< their centres a step, 8 or 16 (FIELD_WIDTH in the field program)
   /// The SIMD kernels sum the levels with large weights in double (DPX_COARSE_DOUBLE in the float field
   /// program): with fieldVector on a device with fp64; DUPLEXFIT_FIELD_COARSE=double|float overrides.
-  bool fieldCoarseDouble = true;
+  bool fieldCoarseDouble = false;
   DeviceTuning tuning() const;  ///< the public view (Device::tuning)
   std::string describe() const;
 };

@@ -41,7 +41,7 @@ struct EvaluatorImpl {
   /// field's 104 MB of doubles grew again for the finest level, 0.27-0.8 s of fresh pages and copies).
   bool soa = false;
   std::vector<float> soaF;
-  /// With soa, on a device with fp64 (LaunchParams::fieldCoarseDouble): the levels of at most
+  /// With soa, where the device's tuning says fieldCoarseDouble: the levels of at most
   /// kDoubleLevelMaxCentres centres whose largest |w| exceeds kDoubleLevelWeight also in double, block by
   /// block (σ, 1/σ, then x, y, z, w arrays in the float arrays' order), which the SIMD kernels sum in
   /// double; dlevel[k] is level k's block offset in soaD, or kFloatLevel.
@@ -337,7 +337,7 @@ FieldEvaluator::FieldEvaluator(const Device& device, const Normalization& normal
   e.norm = normalization;
   e.f0 = f0;
   e.soa = precision == Precision::Float && !device.isReference() && device.impl()->params().fieldVector;
-  e.coarseDouble = e.soa && device.impl()->params().fieldCoarseDouble && device.supportsDouble();
+  e.coarseDouble = e.soa && device.tuning().fieldCoarseDouble;  // the device's rule, DeviceOptions included
 }
 
 void FieldEvaluator::appendLevel(const FieldLevel& level) {
