@@ -9,6 +9,7 @@
 // NeighborIndex::radiusSearch: the two return the same points with the same distances.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -52,9 +53,73 @@ class CellGrid {
   /// Calls visit(index, distance) for every point whose distance from q is < radius, in cell order.
   template <typename Visit>
   void within(const double* q, double radius, Visit&& visit) const {
+    withinSquared(q, radius, [&visit](Index id, double squared) { visit(id, std::sqrt(squared)); });
+  }
+
+  /// The same points as within(), each with its squared distance (the distance is its square root). The
+  /// square root is taken only where the squared distance alone cannot decide a hit (within a few
+  /// roundings of radius²).
+  template <typename Visit>
+  void withinSquared(const double* q, double radius, Visit&& visit) const {
+    const double bound = boundFor(radius), sure = sureBelow(radius);
+    forRuns(q, radius, [&](std::uint32_t b, std::uint32_t e) {
+      for (std::uint32_t k = b; k < e; ++k) {
+        const double squared = squaredTo(q, k);
+        if (!(squared < bound)) continue;
+        if (squared < sure || std::sqrt(squared) < radius) visit(id_[k], squared);
+      }
+    });
+  }
+
+  /// A hit of collect(): a point's input row and its squared distance from the query.
+  struct Hit {
+    Index id;
+    double squared;
+  };
+
+  /// withinSquared()'s hits, in the same order, written to out[at …] (out grows as needed; entries past
+  /// the hits are scratch); returns their number. Every candidate is written and the slot kept only for a
+  /// hit, so the loop has no branch that depends on the distance (the level assembly's hot loop: about
+  /// one candidate in six is a hit there, which a branch mispredicts).
+  std::size_t collect(const double* q, double radius, std::vector<Hit>& out, std::size_t at) const {
+    std::size_t candidates = 0;
+    forRuns(q, radius, [&candidates](std::uint32_t b, std::uint32_t e) { candidates += e - b; });
+    if (out.size() < at + candidates) out.resize(std::max(2 * out.size(), at + candidates + 4096));
+    const double bound = boundFor(radius), sure = sureBelow(radius);
+    Hit* o = out.data() + at;
+    std::size_t n = 0;
+    forRuns(q, radius, [&](std::uint32_t b, std::uint32_t e) {
+      for (std::uint32_t k = b; k < e; ++k) {
+        const double squared = squaredTo(q, k);
+        o[n].id = id_[k];
+        o[n].squared = squared;
+        n += squared < sure ? 1 : 0;
+        // Within a few roundings of radius² (hardly ever): the square root decides, as in withinSquared.
+        // One branch on both bounds (&, not &&), almost never taken, so it is predicted.
+        if (__builtin_expect((squared >= sure) & (squared < bound), 0)) n += std::sqrt(squared) < radius ? 1 : 0;
+      }
+    });
+    return n;
+  }
+
+  /// A squared distance below this has a (correctly rounded) square root below `radius`: radius² less a
+  /// relative 1e-12, far more than the roundings of radius² and of the square root (a few 1e-16).
+  static double sureBelow(double radius) noexcept { return radius * radius * (1.0 - 1e-12); }
+
+ private:
+  /// The squared distance from q to sorted point k, as FLANN's L2_3D sums it.
+  double squaredTo(const double* q, std::uint32_t k) const noexcept {
+    const double* p = xyz_.data() + 3 * static_cast<std::size_t>(k);
+    const double dx = q[0] - p[0], dy = q[1] - p[1], dz = q[2] - p[2];
+    return dx * dx + dy * dy + dz * dz;
+  }
+
+  /// Calls run(begin, end) for the sorted points of each (y, z) row of cells that [q − r, q + r] meets.
+  template <typename Run>
+  void forRuns(const double* q, double radius, Run&& run) const {
     if (!usable_ || id_.empty()) return;
     // The cells that [q − r, q + r] meets, with r widened a little so that no rounding of q ± r can drop
-    // a cell holding a point whose rounded distance is below the radius (every point is tested below).
+    // a cell holding a point whose rounded distance is below the radius (every point is tested).
     const double reach = reachFor(radius);
     int from[3], to[3];
     for (int a = 0; a < 3; ++a) {
@@ -63,26 +128,15 @@ class CellGrid {
       from[a] = lo <= 0.0 ? 0 : static_cast<int>(lo);
       to[a] = hi >= static_cast<double>(n_[a] - 1) ? n_[a] - 1 : static_cast<int>(hi);
     }
-    const double bound = boundFor(radius);
     const auto nx = static_cast<std::size_t>(n_[0]), ny = static_cast<std::size_t>(n_[1]);
     for (int iz = from[2]; iz <= to[2]; ++iz) {
       for (int iy = from[1]; iy <= to[1]; ++iy) {
         const std::size_t row = (static_cast<std::size_t>(iz) * ny + static_cast<std::size_t>(iy)) * nx;
-        const std::uint32_t b = start_[row + static_cast<std::size_t>(from[0])];
-        const std::uint32_t e = start_[row + static_cast<std::size_t>(to[0]) + 1];
-        for (std::uint32_t k = b; k < e; ++k) {
-          const double* p = xyz_.data() + 3 * static_cast<std::size_t>(k);
-          const double dx = q[0] - p[0], dy = q[1] - p[1], dz = q[2] - p[2];
-          const double squared = dx * dx + dy * dy + dz * dz;
-          if (!(squared < bound)) continue;
-          const double d = std::sqrt(squared);
-          if (d < radius) visit(id_[k], d);
-        }
+        run(start_[row + static_cast<std::size_t>(from[0])], start_[row + static_cast<std::size_t>(to[0]) + 1]);
       }
     }
   }
 
- private:
   bool usable_ = false;
   double lo_[3] = {0.0, 0.0, 0.0};
   double inv_ = 0.0;

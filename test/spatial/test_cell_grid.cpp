@@ -30,6 +30,16 @@ int mismatches(const Points& points, const Points& queries, double cell, double 
     std::vector<std::pair<Index, double>> got, want;
     const double q[3] = {queries(i, 0), queries(i, 1), queries(i, 2)};
     grid.within(q, radius, [&got](Index j, double d) { got.emplace_back(j, d); });
+    // collect() (the assembly's branch-free form): the same hits in the same order, squared distances
+    // whose square roots are within()'s distances.
+    std::vector<CellGrid::Hit> hits(3);  // written from slot 1 on: slot 0 must stay untouched
+    hits[0] = CellGrid::Hit{-7, -1.0};
+    const std::size_t n = grid.collect(q, radius, hits, 1);
+    bool same = n == got.size() && hits[0].id == -7 && hits[0].squared == -1.0;
+    for (std::size_t k = 0; same && k < n; ++k) {
+      same = hits[k + 1].id == got[k].first && std::sqrt(hits[k + 1].squared) == got[k].second;
+    }
+    bad += same ? 0 : 1;
     const auto u = static_cast<std::size_t>(i);
     for (auto e = ref.offsets[u]; e < ref.offsets[u + 1]; ++e) {
       want.emplace_back(ref.indices[static_cast<std::size_t>(e)], ref.distances[static_cast<std::size_t>(e)]);
@@ -68,6 +78,23 @@ TEST_SUITE("spatial") {
     for (const double radius : {0.0005, cell / 2, cell, 1.7 * cell, 0.6}) {
       CAPTURE(radius);
       CHECK(mismatches(p, q, cell, radius) == 0);
+    }
+  }
+
+  TEST_CASE("cell grid: points a few roundings from the radius, where the squared distance cannot decide") {
+    // Points at r·(1 + k·2⁻⁵²) from the origin along each axis and diagonal, k = −8 … 8, for radii that
+    // do and do not square exactly: a hit is exactly a distance (square root rounded) below r, as in the tree.
+    for (const double radius : {0.05, 0.1, 1.0 / 3.0, 0.7071067811865476, 2.0}) {
+      CAPTURE(radius);
+      Points p(17 * 4, 3);
+      const Eigen::RowVector3d dirs[4] = {{1, 0, 0}, {0, -1, 0}, {0, 0, 1}, Eigen::RowVector3d(1, 1, 1).normalized()};
+      for (int k = -8; k <= 8; ++k) {
+        for (int d = 0; d < 4; ++d) {
+          p.row((k + 8) * 4 + d) = radius * (1.0 + k * std::ldexp(1.0, -52)) * dirs[d];
+        }
+      }
+      Points q = Points::Zero(1, 3);
+      for (const double cell : {radius, radius / 3}) CHECK(mismatches(p, q, cell, radius) == 0);
     }
   }
 
