@@ -187,7 +187,7 @@ struct WindingNumber::Impl {
     return w;
   }
 
-  double at(const Eigen::Vector3d& q) const {
+  double at(const Eigen::Vector3d& q, double beta) const {
     if (nodes.empty()) return 0.0;
     double w = 0.0;
     std::int32_t stack[512];
@@ -197,7 +197,7 @@ struct WindingNumber::Impl {
       const Node& nd = nodes[static_cast<std::size_t>(stack[--top])];
       const Eigen::Vector3d x = nd.centre - q;
       const double r = x.norm();
-      if (r > opt.beta * nd.radius && r > 0.0) {
+      if (r > beta * nd.radius && r > 0.0) {
         const double r3 = r * r * r;
         w += nd.dipole.dot(x) / r3 + nd.moment.trace() / r3 - 3.0 * x.dot(nd.moment * x) / (r3 * r * r);
       } else if (nd.leaf || top + 8 > 512) {
@@ -234,7 +234,10 @@ WindingNumber::~WindingNumber() = default;
 
 const Eigen::VectorXd& WindingNumber::areas() const noexcept { return impl_->areasInput; }
 
-Eigen::VectorXd WindingNumber::evaluate(const Points& queries) const {
+Eigen::VectorXd WindingNumber::evaluate(const Points& queries) const { return evaluate(queries, impl_->opt.beta); }
+
+Eigen::VectorXd WindingNumber::evaluate(const Points& queries, double beta) const {
+  if (!(beta > 0.0) || !std::isfinite(beta)) throw InvalidArgument("WindingNumber::evaluate: beta must be positive and finite");
   Eigen::VectorXd out(queries.rows());
   // In Morton order, so that consecutive queries walk the same nodes (each value is its own query's, so
   // the order changes no result).
@@ -243,7 +246,7 @@ Eigen::VectorXd WindingNumber::evaluate(const Points& queries) const {
 #pragma omp parallel for schedule(dynamic, 64)
   for (std::int64_t s = 0; s < n; ++s) {
     const auto i = static_cast<Eigen::Index>(order.empty() ? s : static_cast<std::int64_t>(order[static_cast<std::size_t>(s)]));
-    out[i] = impl_->at(queries.row(i).transpose());
+    out[i] = impl_->at(queries.row(i).transpose(), beta);
   }
   return out;
 }
