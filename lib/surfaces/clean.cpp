@@ -55,6 +55,18 @@ class Cleaner {
     f_.resize(nf);
     alive_.assign(nf, 1);
     vf_.resize(nv);
+    // Each vertex's face list reserved at its degree first: one allocation a vertex instead of the
+    // doubling's four (the allocations were a tenth of fandisk_550k's cleaning).
+    {
+      std::vector<int> degree(nv, 0);
+      for (Eigen::Index i = 0; i < mesh.faces.rows(); ++i) {
+        for (int k = 0; k < 3; ++k) {
+          const Index v = mesh.faces(i, k);
+          if (v >= 0 && static_cast<std::size_t>(v) < nv) ++degree[static_cast<std::size_t>(v)];
+        }
+      }
+      for (std::size_t v = 0; v < nv; ++v) vf_[v].reserve(static_cast<std::size_t>(degree[v]));
+    }
     for (std::size_t i = 0; i < nf; ++i) {
       Tri& t = f_[i];
       for (int k = 0; k < 3; ++k) {
