@@ -55,19 +55,46 @@ bool float32Degenerate(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const
   return float32DegenerateRounded(a, b, c);
 }
 
-double minAngleDegrees(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+namespace {
+
+/// The two parts of a triangle's smallest angle, atan2(|e1 × e2|, e1 · e2) at the corner opposite its
+/// shortest side (law of sines); false for a zero-length side (angle 0).
+bool smallestAngleParts(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double& cross,
+                        double& dot) {
   const Eigen::Vector3d p[3] = {a, b, c};
-  // The smallest angle is the one opposite the shortest side (law of sines), so one arc tangent is enough:
-  // this runs for every face of a fine mesh, several times (cleaning, projection, quality reports).
   const double opposite[3] = {(c - b).squaredNorm(), (a - c).squaredNorm(), (b - a).squaredNorm()};
-  if (opposite[0] == 0.0 || opposite[1] == 0.0 || opposite[2] == 0.0) return 0.0;
+  if (opposite[0] == 0.0 || opposite[1] == 0.0 || opposite[2] == 0.0) return false;
   int k = 0;
   for (int j = 1; j < 3; ++j) {
     if (opposite[j] < opposite[k]) k = j;
   }
   const Eigen::Vector3d e1 = p[(k + 1) % 3] - p[k], e2 = p[(k + 2) % 3] - p[k];
+  cross = e1.cross(e2).norm();
+  dot = e1.dot(e2);
+  return true;
+}
+
+/// An angle bound for triangleQuality's counts, as a tangent with a relative margin: a face whose
+/// |e1 × e2| / (e1 · e2) lies below `below` has its angle under `degrees` whatever the roundings of the arc
+/// tangent (about 1e-16), above `above` not; in between the arc tangent decides.
+struct TangentBound {
+  double degrees, below, above;
+  explicit TangentBound(double deg) : degrees(deg) {
+    const double t = deg > 0.0 && deg < 90.0 ? std::tan(deg * M_PI / 180.0) : -1.0;
+    below = t > 0.0 ? t * (1.0 - 1e-9) : -1.0;  // -1: never sure (0 and 90 degrees and beyond)
+    above = t > 0.0 ? t * (1.0 + 1e-9) : -1.0;
+  }
+};
+
+}  // namespace
+
+double minAngleDegrees(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  // The smallest angle is the one opposite the shortest side (law of sines), so one arc tangent is enough:
+  // this runs for every face of a fine mesh, several times (cleaning, projection, quality reports).
+  double cross = 0.0, dot = 0.0;
+  if (!smallestAngleParts(a, b, c, cross, dot)) return 0.0;
   // atan2 of |e1 × e2| and e1 · e2 is accurate for angles near 0 and 180° alike.
-  return std::atan2(e1.cross(e2).norm(), e1.dot(e2)) * (180.0 / M_PI);
+  return std::atan2(cross, dot) * (180.0 / M_PI);
 }
 
 TriangleQuality triangleQuality(const Mesh& mesh, double sliverAngle) {
@@ -80,12 +107,31 @@ TriangleQuality triangleQuality(const Mesh& mesh, double sliverAngle) {
   q.faces = static_cast<std::size_t>(nf);
   double minAngle = std::numeric_limits<double>::infinity();
   double shortest = std::numeric_limits<double>::infinity();
+  // The arc tangent only where a bound or the running minimum cannot be decided from the tangent
+  // |e1 × e2| / (e1 · e2) itself (most faces of a fine mesh are far from 1, 5, 10 degrees and from the
+  // smallest angle so far): the same counts and minimum, without an arc tangent a face (which was half of
+  // this pass). Every count below compares the angle with its bound exactly as before.
+  const TangentBound bounds[4] = {TangentBound(sliverAngle), TangentBound(1.0), TangentBound(5.0), TangentBound(10.0)};
+  double minTangent = std::numeric_limits<double>::infinity();  // above it: an angle above the minimum so far
   for (Eigen::Index i = 0; i < nf; ++i) {
     const std::int32_t ia = mesh.faces(i, 0), ib = mesh.faces(i, 1), ic = mesh.faces(i, 2);
     const Eigen::Vector3d a = mesh.vertices.row(ia), b = mesh.vertices.row(ib), c = mesh.vertices.row(ic);
     const bool repeated = ia == ib || ib == ic || ia == ic;
     if (!repeated) shortest = std::min({shortest, (b - a).norm(), (c - b).norm(), (a - c).norm()});
     const bool degenerate = repeated || float32Degenerate(a, b, c);
+    double cross = 0.0, dot = 0.0;
+    if (!degenerate && smallestAngleParts(a, b, c, cross, dot) && dot > 0.0) {
+      const double r = cross / dot;
+      bool decided = r >= minTangent && std::isfinite(r);
+      for (const TangentBound& t : bounds) decided = decided && (r < t.below || r > t.above);
+      if (decided) {  // above the minimum so far; each count from the tangent
+        q.slivers += r < bounds[0].below ? 1 : 0;
+        q.below1 += r < bounds[1].below ? 1 : 0;
+        q.below5 += r < bounds[2].below ? 1 : 0;
+        q.below10 += r < bounds[3].below ? 1 : 0;
+        continue;
+      }
+    }
     const double angle = repeated ? 0.0 : minAngleDegrees(a, b, c);
     if (degenerate) {
       ++q.float32DegenerateFaces;
@@ -95,6 +141,8 @@ TriangleQuality triangleQuality(const Mesh& mesh, double sliverAngle) {
       if (angle < minAngle) {
         minAngle = angle;
         q.worstFace = i;
+        // Tangents above this have angles above the new minimum (the margin covers the roundings).
+        minTangent = angle < 90.0 ? std::tan(angle * M_PI / 180.0) * (1.0 + 1e-9) + 1e-300 : std::numeric_limits<double>::infinity();
       }
     }
     const double counted = degenerate ? 0.0 : angle;

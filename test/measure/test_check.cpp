@@ -79,6 +79,40 @@ bool roundedRule(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen
   return !((db - da).cross(dc - da).norm() > 1e-12 * longest2);
 }
 
+/// triangleQuality as it states its counts: every face's smallest angle by minAngleDegrees (the library
+/// takes the arc tangent only where the tangent cannot decide; the two must agree everywhere).
+TriangleQuality statedQuality(const Mesh& mesh, double sliverAngle) {
+  TriangleQuality q;
+  q.sliverAngle = sliverAngle;
+  q.faces = static_cast<std::size_t>(mesh.faces.rows());
+  double minAngle = std::numeric_limits<double>::infinity(), shortest = std::numeric_limits<double>::infinity();
+  for (Eigen::Index i = 0; i < mesh.faces.rows(); ++i) {
+    const std::int32_t ia = mesh.faces(i, 0), ib = mesh.faces(i, 1), ic = mesh.faces(i, 2);
+    const Eigen::Vector3d a = mesh.vertices.row(ia), b = mesh.vertices.row(ib), c = mesh.vertices.row(ic);
+    const bool repeated = ia == ib || ib == ic || ia == ic;
+    if (!repeated) shortest = std::min({shortest, (b - a).norm(), (c - b).norm(), (a - c).norm()});
+    const bool degenerate = repeated || float32Degenerate(a, b, c);
+    const double angle = repeated ? 0.0 : minAngleDegrees(a, b, c);
+    if (degenerate) {
+      ++q.float32DegenerateFaces;
+      if (q.firstFloat32DegenerateFace < 0) q.firstFloat32DegenerateFace = i;
+    } else {
+      q.slivers += angle < sliverAngle ? 1 : 0;
+      if (angle < minAngle) {
+        minAngle = angle;
+        q.worstFace = i;
+      }
+    }
+    const double counted = degenerate ? 0.0 : angle;
+    q.below1 += counted < 1.0 ? 1 : 0;
+    q.below5 += counted < 5.0 ? 1 : 0;
+    q.below10 += counted < 10.0 ? 1 : 0;
+  }
+  q.minAngle = std::isfinite(minAngle) ? minAngle : 0.0;
+  q.shortestEdge = std::isfinite(shortest) ? shortest : 0.0;
+  return q;
+}
+
 }  // namespace
 
 TEST_SUITE("measure") {
@@ -307,6 +341,83 @@ TEST_CASE("check: a triangle degenerate in float32 is an error, slivers above th
     CHECK(checkMesh(m, tiny).quality.slivers == 0);
     CHECK(minAngleDegrees(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 0)) ==
           doctest::Approx(45.0));
+  }
+}
+
+TEST_CASE("check: triangle quality counts as its angles state, at the bounds to the last bits too") {
+  // A soup of isosceles needles whose smallest angle is each bound (1, 5, 10 degrees, the sliver angles)
+  // times 1 + j·2⁻⁵², j = −64 … 64, and the same angles a relative 1e-9 either side (where the library
+  // turns from the tangent to the arc tangent), in several orientations and sizes, plus random
+  // triangles, near-degenerate ones and repeated corners; the minimum falls in steps (its face first).
+  std::mt19937_64 rng(20261206);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<Eigen::Vector3d> corners;
+  const auto add = [&corners](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+    corners.push_back(a);
+    corners.push_back(b);
+    corners.push_back(c);
+  };
+  for (int r = 0; r < 3000; ++r) add(Eigen::Vector3d(u(rng), u(rng), u(rng)), Eigen::Vector3d(u(rng), u(rng), u(rng)),
+                                     Eigen::Vector3d(u(rng), u(rng), u(rng)));
+  for (const double bound : {0.5, 1.0, 3.0, 5.0, 10.0, 20.0, 60.0}) {
+    for (int j = -64; j <= 64; ++j) {
+      for (const double rel : {0.0, 1e-9, -1e-9, 1.0001e-9, -0.9999e-9}) {
+        const double theta = bound * (1.0 + j * std::ldexp(1.0, -52) + rel) * M_PI / 180.0;
+        const double size = std::pow(10.0, 3.0 * u(rng));
+        const Eigen::Vector3d origin(u(rng), u(rng), u(rng));
+        // Unit legs along two orthonormal directions d1, d2 of a random frame: the angle at the apex.
+        const Eigen::Vector3d d1 = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+        const Eigen::Vector3d d2 = d1.cross(Eigen::Vector3d(u(rng), u(rng), u(rng))).normalized();
+        add(origin, origin + size * d1, origin + size * (std::cos(theta) * d1 + std::sin(theta) * d2));
+      }
+    }
+  }
+  // Needles at a bound where the arc tangent and the tangent disagree about "below" (rounding: about one
+  // in a thousand within 2⁻⁴⁴ of 5 and 10 degrees): a test of the tangent alone would count them wrong.
+  std::size_t disagreeing = 0;
+  for (const double bound : {1.0, 3.0, 5.0, 10.0, 20.0}) {
+    const double t = std::tan(bound * M_PI / 180.0);
+    int found = 0;
+    for (int tries = 0; tries < 400000 && found < 16; ++tries) {
+      const double theta = bound * (1.0 + std::ldexp(u(rng), -44)) * M_PI / 180.0;
+      const Eigen::Vector3d b(1.0 + 0.3 * u(rng), 0, 0), c(std::cos(theta), std::sin(theta), 0);
+      const double cross = b.cross(c).norm(), dot = b.dot(c);
+      if ((std::atan2(cross, dot) * (180.0 / M_PI) < bound) == (cross / dot < t)) continue;
+      add(Eigen::Vector3d(0, 0, 0), b, c);
+      ++found;
+    }
+    disagreeing += static_cast<std::size_t>(found);
+  }
+  CHECK(disagreeing >= 16);
+  for (int r = 0; r < 200; ++r) {  // decreasing needles: every one a new minimum
+    const double theta = 30.0 * std::pow(0.9, r) * M_PI / 180.0;
+    add(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(std::cos(theta), std::sin(theta), 0));
+  }
+  for (int r = 0; r < 64; ++r) {  // then smaller by a relative 5e-10 each: new minima within any margin
+    const double theta = 30.0 * std::pow(0.9, 200) * (1.0 - 5e-10 * (r + 1)) * M_PI / 180.0;
+    add(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(std::cos(theta), std::sin(theta), 0));
+  }
+  add(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(2, 1e-12, 0));  // flat in float32
+  Mesh m;
+  m.vertices.resize(static_cast<Eigen::Index>(corners.size()), 3);
+  m.faces.resize(static_cast<Eigen::Index>(corners.size() / 3), 3);
+  for (std::size_t i = 0; i < corners.size(); ++i) m.vertices.row(static_cast<Eigen::Index>(i)) = corners[i].transpose();
+  for (Eigen::Index f = 0; f < m.faces.rows(); ++f) m.faces.row(f) << 3 * f, 3 * f + 1, 3 * f + 2;
+  m.faces(1, 2) = m.faces(1, 1);  // a repeated corner
+  for (const double sliver : {0.0, 0.5, 1.0, 3.0, 20.0, 60.0}) {
+    CAPTURE(sliver);
+    const TriangleQuality got = triangleQuality(m, sliver), want = statedQuality(m, sliver);
+    CHECK(got.slivers == want.slivers);
+    CHECK(got.below1 == want.below1);
+    CHECK(got.below5 == want.below5);
+    CHECK(got.below10 == want.below10);
+    CHECK(got.minAngle == want.minAngle);
+    CHECK(got.worstFace == want.worstFace);
+    CHECK(got.float32DegenerateFaces == want.float32DegenerateFaces);
+    CHECK(got.firstFloat32DegenerateFace == want.firstFloat32DegenerateFace);
+    CHECK(got.shortestEdge == want.shortestEdge);
+    CHECK(want.below1 > 0);
+    CHECK(want.below10 > want.below5);
   }
 }
 
