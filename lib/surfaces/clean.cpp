@@ -162,6 +162,7 @@ class Cleaner {
   /// Phase 1: collapse edges shorter than the collapse length or with float32-coincident ends, shortest
   /// first; repeated while a pass collapses something (a refusal can go away when a neighbour collapses).
   void collapseShort() {
+    std::vector<int> around;
     for (int pass = 0; pass < 4; ++pass) {
       const std::size_t before = report.collapses;
       using Entry = std::tuple<double, int, int>;
@@ -186,7 +187,8 @@ class Cleaner {
         if ((p_[static_cast<std::size_t>(a)] - p_[static_cast<std::size_t>(b)]).norm() != len) continue;  // stale
         if (!hasEdge(a, b)) continue;
         if (!tryCollapse(a, b)) continue;
-        for (int n : neighbours(a)) consider(a, n);
+        neighbours(a, around);
+        for (int n : around) consider(a, n);
       }
       if (report.collapses == before) break;
     }
@@ -338,7 +340,8 @@ class Cleaner {
   bool closedFan(int v) const {
     const std::vector<int>& faces = vf_[static_cast<std::size_t>(v)];
     // Face (v, b, c) leads to the face (v, c, d): follow "next" from each face's last corner.
-    std::vector<std::pair<int, int>> nextPrev;  // (b, c) per face
+    std::vector<std::pair<int, int>>& nextPrev = scratchFan_;  // (b, c) per face
+    nextPrev.clear();
     for (int f : faces) {
       const Tri& t = f_[static_cast<std::size_t>(f)];
       const int k = t[0] == v ? 0 : (t[1] == v ? 1 : 2);
@@ -428,8 +431,11 @@ class Cleaner {
     Vec ringNormal = Vec::Zero();
     for (int f : ring) ringNormal += normal(f_[static_cast<std::size_t>(f)]);
     ringNormal += normal(f_[static_cast<std::size_t>(shared[0])]) + normal(f_[static_cast<std::size_t>(shared[1])]);
-    const std::vector<Vec> defaults = {0.5 * (pos(a) + pos(b)), pos(a), pos(b)};
-    for (const Vec& q : positions ? *positions : defaults) {
+    const Vec defaults[3] = {0.5 * (pos(a) + pos(b)), pos(a), pos(b)};
+    const Vec* first = positions ? positions->data() : defaults;
+    const Vec* last = positions ? positions->data() + positions->size() : defaults + 3;
+    for (const Vec* at = first; at != last; ++at) {
+      const Vec& q = *at;
       if (!geometryOk(ring, a, b, q, ringNormal)) continue;
       apply(a, b, q, shared);
       ++report.collapses;
@@ -598,6 +604,7 @@ class Cleaner {
   std::vector<std::vector<int>> vf_;
   std::vector<int> scratchA_, scratchB_, scratchCommon_, scratchRing_;  ///< tryCollapse's, reused
   std::vector<Tri> scratchKeys_;
+  mutable std::vector<std::pair<int, int>> scratchFan_;  ///< closedFan's (next, previous) per face
 };
 
 }  // namespace
