@@ -127,6 +127,17 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
   w.f.resize(nf);
   w.n0.resize(nf);
   w.vf.resize(nv);
+  {
+    // Each list reserved at the vertex's degree: one allocation a vertex, not the doubling's four.
+    std::vector<int> degree(nv, 0);
+    for (std::size_t i = 0; i < nf; ++i) {
+      for (int k = 0; k < 3; ++k) {
+        const Index x = mesh.faces(static_cast<Eigen::Index>(i), k);
+        if (x >= 0 && static_cast<std::size_t>(x) < nv) ++degree[static_cast<std::size_t>(x)];
+      }
+    }
+    for (std::size_t v = 0; v < nv; ++v) w.vf[v].reserve(static_cast<std::size_t>(degree[v]));
+  }
   for (std::size_t i = 0; i < nf; ++i) {
     Tri t{};
     for (int k = 0; k < 3; ++k) {
