@@ -166,6 +166,10 @@ class FsaiPreconditioner final : public Preconditioner {
   ///         square or has a_ii ≤ 0; DeviceError as DeviceCsr.
   FsaiPreconditioner(const Device& device, const CsrMatrix& a, Precision precision, double threshold = 0.2,
                      int maxNeighbours = 32);
+  /// The same for `a` as DeviceCsr::upload put it on the device as `uploaded` (same device and precision):
+  /// the upload validated `a` and kept its diagonal, so neither is done again (a quarter of the set-up on
+  /// a fit's finest levels). @throws InvalidArgument also when the two differ in rows or non-zeros.
+  FsaiPreconditioner(const DeviceCsr& uploaded, const CsrMatrix& a, double threshold = 0.2, int maxNeighbours = 32);
   void apply(const DeviceVector& r, DeviceVector& z) const override;
   std::string name() const override { return describe(threshold_, maxNeighbours_); }
   /// The name of an FSAI preconditioner with these parameters ("fsai (threshold 0.2, at most 32 couplings a row)").
@@ -182,6 +186,9 @@ class FsaiPreconditioner final : public Preconditioner {
   std::size_t fallbacks_ = 0;
   DeviceCsr g_, gt_;
   mutable DeviceVector tmp_;  ///< G r
+
+  /// The set-up of both constructors, on a validated `a` with its diagonal.
+  void build(const Device& device, const CsrMatrix& a, const Eigen::VectorXd& diagonal, Precision precision);
 };
 
 /// Why a CG solve stopped.

@@ -126,8 +126,11 @@ SolveStats detail::solveLevelSystem(const Device& device, const CsrMatrix& a, co
   DeviceVector x(device, static_cast<std::size_t>(b.size()), options.precision);
   std::unique_ptr<Preconditioner> pre;
   if (options.preconditioner == PreconditionerKind::Fsai) {
-    pre = std::make_unique<FsaiPreconditioner>(device, a, options.precision, options.fsaiThreshold,
-                                               options.fsaiMaxNeighbours);
+    // An upload validated `a` and kept its diagonal: the set-up takes both from it. A matrix assembled on
+    // the device comes with no host validation: the FSAI set-up validates it.
+    pre = assembled != nullptr ? std::make_unique<FsaiPreconditioner>(device, a, options.precision, options.fsaiThreshold,
+                                                                     options.fsaiMaxNeighbours)
+                               : std::make_unique<FsaiPreconditioner>(m, a, options.fsaiThreshold, options.fsaiMaxNeighbours);
   } else if (options.preconditioner == PreconditionerKind::BlockJacobi) {
     pre = std::make_unique<BlockJacobiPreconditioner>(device, a, options.precision, options.blockSize);
   } else {

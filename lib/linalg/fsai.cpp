@@ -34,9 +34,30 @@ FsaiPreconditioner::FsaiPreconditioner(const Device& device, const CsrMatrix& a,
   if (maxNeighbours < 0 || maxNeighbours > 64) throw InvalidArgument("FSAI: maxNeighbours must be in [0, 64]");
   if (a.rows != a.cols) throw InvalidArgument("FSAI: the matrix is not square");
   a.validate();  // sorted, in-range columns and finite values before any entry is looked up
+  build(device, a, a.diagonal(), precision);
+}
+
+FsaiPreconditioner::FsaiPreconditioner(const DeviceCsr& uploaded, const CsrMatrix& a, double threshold,
+                                       int maxNeighbours)
+    : threshold_(threshold), maxNeighbours_(maxNeighbours), n_(static_cast<std::size_t>(a.rows)) {
+  if (!(threshold >= 0.0 && threshold <= 1.0)) throw InvalidArgument("FSAI: threshold must be in [0, 1]");
+  if (maxNeighbours < 0 || maxNeighbours > 64) throw InvalidArgument("FSAI: maxNeighbours must be in [0, 64]");
+  if (a.rows != a.cols) throw InvalidArgument("FSAI: the matrix is not square");
+  if (uploaded.rows() != n_ || uploaded.cols() != static_cast<std::size_t>(a.cols) ||
+      uploaded.nonZeros() != a.values.size() || a.colIdx.size() != a.values.size() ||
+      a.rowPtr.size() != n_ + 1 || static_cast<std::size_t>(uploaded.diagonal().size()) != n_) {
+    throw InvalidArgument("FSAI: the host matrix (" + std::to_string(a.rows) + " rows, " + std::to_string(a.values.size()) +
+                          " non-zeros) is not the uploaded one (" + std::to_string(uploaded.rows()) + " rows, " +
+                          std::to_string(uploaded.nonZeros()) + " non-zeros)");
+  }
+  build(uploaded.device(), a, uploaded.diagonal(), uploaded.precision());
+}
+
+void FsaiPreconditioner::build(const Device& device, const CsrMatrix& a, const Eigen::VectorXd& diagonal,
+                               Precision precision) {
+  const double threshold = threshold_;
   const auto n = static_cast<std::ptrdiff_t>(n_);
-  const auto k = static_cast<std::size_t>(maxNeighbours);
-  const Eigen::VectorXd diagonal = a.diagonal();
+  const auto k = static_cast<std::size_t>(maxNeighbours_);
   for (Index i = 0; i < a.rows; ++i) {
     const double d = diagonal[i];
     if (!(d > 0.0) || !std::isfinite(d)) {
@@ -84,8 +105,9 @@ FsaiPreconditioner::FsaiPreconditioner(const Device& device, const CsrMatrix& a,
         if (j < i && strong(static_cast<Index>(i), j, v)) cand.emplace_back(-std::abs(v), j);
       }
       const std::size_t m = std::min(cand.size(), k);
-      // beyond k: the strongest couplings first, ties by column (the same pattern on every thread)
-      std::partial_sort(cand.begin(), cand.begin() + static_cast<std::ptrdiff_t>(m), cand.end());
+      // beyond k: the strongest couplings first, ties by column (the same pattern on every thread); when
+      // all are kept (nearly every row) the order does not matter, the pattern is sorted by column below.
+      if (m < cand.size()) std::partial_sort(cand.begin(), cand.begin() + static_cast<std::ptrdiff_t>(m), cand.end());
       s.resize(m);
       for (std::size_t p = 0; p < m; ++p) s[p] = cand[p].second;
       std::sort(s.begin(), s.end());

@@ -211,6 +211,23 @@ TEST_SUITE("linalg") {
         CHECK(none.entriesPerRow() == 1.0);
         none.apply(dr, z);
         CHECK((z.download() - r.cwiseQuotient(diag)).norm() <= tol * r.norm());
+        // From the uploaded matrix (its validation and diagonal reused): the same preconditioner bit for
+        // bit, with every coupling, with the three strongest of 39 (row i keeps min(i, 3) + 1 entries) and
+        // with the default threshold; a host matrix that is not the uploaded one is refused.
+        const DeviceCsr up = DeviceCsr::upload(*d, dense, p);
+        for (const auto& [threshold, k] : {std::pair<double, int>{0.0, 64}, {0.0, 3}, {0.2, 32}}) {
+          CAPTURE(threshold);
+          CAPTURE(k);
+          const FsaiPreconditioner fresh(*d, dense, p, threshold, k), reused(up, dense, threshold, k);
+          CHECK(fresh.entriesPerRow() == reused.entriesPerRow());
+          DeviceVector z2(*d, 40, p);
+          fresh.apply(dr, z);
+          reused.apply(dr, z2);
+          CHECK(z.download() == z2.download());
+          if (k == 3) CHECK(reused.entriesPerRow() == doctest::Approx((1 + 2 + 3 + 4 * 37) / 40.0));
+        }
+        const CsrMatrix smaller = assembleWendland(few.topRows(39), 1.5);
+        CHECK_THROWS_WITH_AS(FsaiPreconditioner(up, smaller), doctest::Contains("not the uploaded one"), InvalidArgument);
       }
     }
     // On a Wendland level system (40 non-zeros a row) FSAI with its default pattern (a few couplings a
