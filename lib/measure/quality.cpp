@@ -78,8 +78,8 @@ bool smallestAngleParts(const Eigen::Vector3d& a, const Eigen::Vector3d& b, cons
 /// |e1 × e2| / (e1 · e2) lies below `below` has its angle under `degrees` whatever the roundings of the arc
 /// tangent (about 1e-16), above `above` not; in between the arc tangent decides.
 struct TangentBound {
-  double degrees, below, above;
-  explicit TangentBound(double deg) : degrees(deg) {
+  double below, above;
+  explicit TangentBound(double deg) {
     const double t = deg > 0.0 && deg < 90.0 ? std::tan(deg * M_PI / 180.0) : -1.0;
     below = t > 0.0 ? t * (1.0 - 1e-9) : -1.0;  // -1: never sure (0 and 90 degrees and beyond)
     above = t > 0.0 ? t * (1.0 + 1e-9) : -1.0;
