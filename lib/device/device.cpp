@@ -324,7 +324,7 @@ Device Device::open(const DeviceSpec& spec, const DeviceOptions& options) {
       }
     }
     if (chosen != nullptr) {
-      d.impl_ = std::make_shared<detail::DeviceImpl>(chosen->device, chosen->info);
+      d.impl_ = std::make_shared<detail::DeviceImpl>(chosen->device, chosen->info, options.allowFp64);
       d.info_ = std::make_shared<const DeviceInfo>(chosen->info);
       d.maxAllocBytes_ = chosen->info.maxAllocBytes;
     }
@@ -378,13 +378,7 @@ void Device::checkAllocation(std::uint64_t bytes, const std::string& what) const
   throw DeviceError(msg.str());
 }
 
-DeviceTuning Device::tuning() const {
-  if (impl_ == nullptr) return DeviceTuning{};
-  DeviceTuning t = impl_->params().tuning();
-  // The coarse levels go to double only where this handle may use it (DeviceOptions::allowFp64).
-  t.fieldCoarseDouble = t.fieldCoarseDouble && supportsDouble();
-  return t;
-}
+DeviceTuning Device::tuning() const { return impl_ == nullptr ? DeviceTuning{} : impl_->params().tuning(); }
 
 std::string DeviceTuning::describe() const {
   if (workGroup == 0) return "reference";

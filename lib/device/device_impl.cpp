@@ -30,7 +30,7 @@ bool isPowerOfTwo(std::size_t x) { return x != 0 && (x & (x - 1)) == 0; }
 /// Centres a step of the SIMD field kernels at the device's native float vector: 16 (AVX-512) or 8.
 int nativeFieldWidth(const DeviceInfo& info) { return info.nativeFloatWidth >= 16 ? 16 : 8; }
 
-LaunchParams chooseParams(const DeviceInfo& info) {
+LaunchParams chooseParams(const DeviceInfo& info, bool fp64Allowed) {
   LaunchParams p;
   if (info.type == DeviceType::Cpu) {
     // PoCL's CPU device: barriers are slow and there are no sub-groups (docs/pocl-notes.md), so
@@ -84,7 +84,9 @@ LaunchParams chooseParams(const DeviceInfo& info) {
     }
     p.fieldCoarseDouble = mode == "double";
   }
-  p.fieldCoarseDouble = p.fieldCoarseDouble && p.fieldVector;  // the scalar kernel (GPUs) stays float
+  // The scalar kernel (GPUs) stays float, and so does a handle that may not use double
+  // (DeviceOptions::allowFp64): its field program then has no double code at all.
+  p.fieldCoarseDouble = p.fieldCoarseDouble && p.fieldVector && fp64Allowed;
   p.workGroup = envSize("DUPLEXFIT_WG_SIZE", p.workGroup);
   p.chunk = envSize("DUPLEXFIT_CHUNK", p.chunk);
   p.lanes = envSize("DUPLEXFIT_LANES", p.lanes);
@@ -131,8 +133,8 @@ void throwKernelArgError(cl_int status, const char* kernelName, cl_uint index) {
   throwClError(status, std::string("clSetKernelArg(") + kernelName + ", " + std::to_string(index) + ")");
 }
 
-DeviceImpl::DeviceImpl(const cl::Device& device, const DeviceInfo& info)
-    : device_(device), info_(info), params_(chooseParams(info)) {
+DeviceImpl::DeviceImpl(const cl::Device& device, const DeviceInfo& info, bool fp64Allowed)
+    : device_(device), info_(info), params_(chooseParams(info, fp64Allowed)) {
   cl_int status = CL_SUCCESS;
   context_ = cl::Context(device_, nullptr, nullptr, nullptr, &status);
   DUPLEXFIT_CL_CHECK(status);

@@ -39,7 +39,9 @@ const std::vector<std::pair<std::string, std::vector<std::string>>>& programTabl
 
 class DeviceImpl {
  public:
-  DeviceImpl(const cl::Device& device, const DeviceInfo& info);
+  /// fp64Allowed: DeviceOptions::allowFp64 of the handle this serves (its launch parameters use no double
+  /// where it is false).
+  DeviceImpl(const cl::Device& device, const DeviceInfo& info, bool fp64Allowed);
 
   cl::Context& context() { return context_; }
   cl::CommandQueue& queue() { return queue_; }

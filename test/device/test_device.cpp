@@ -6,6 +6,7 @@
 
 #include "duplexfit/device.hpp"
 #include "duplexfit/error.hpp"
+#include "device/device_impl.hpp"
 #include "duplexfit/linalg.hpp"
 #include "test_device.hpp"
 
@@ -105,6 +106,12 @@ TEST_SUITE("device") {
     // Nor are a float field's coarse levels summed in double through it.
     CHECK_FALSE(noFp64.tuning().fieldCoarseDouble);
     CHECK(noFp64.tuning().describe().find("+double") == std::string::npos);
+    // Its float field program has no double code at all (the launch parameters know the option), where a
+    // handle that may use fp64 on a CPU device with it sums the coarse levels in double.
+    CHECK(noFp64.impl()->programSource("field", Precision::Float).find("#define DPX_COARSE_DOUBLE 1") == std::string::npos);
+    if (dev.info().fp64 && dev.tuning().fieldVector && std::getenv("DUPLEXFIT_FIELD_COARSE") == nullptr) {
+      CHECK(dev.impl()->programSource("field", Precision::Float).find("#define DPX_COARSE_DOUBLE 1") != std::string::npos);
+    }
   }
 
   TEST_CASE("device: a buffer above the max allocation is refused with sizes in the message") {
