@@ -15,10 +15,11 @@ ratio ours/peer. What is timed:
 Without open3d/pyopenvdb (or with --no-peer) only ours runs and the peer columns say "skipped".
 
 usage: bench/fit_bench.py [--duplexfit build/cli/duplexfit] [--data ../shared/data] [--device SPEC ...]
-                          [--clouds fandisk_8k,igea_72k,...] [--offset 0.025] [--repeat 1] [--no-peer]
+                          [--clouds fandisk_8k,igea_72k,...|all] [--offset 0.025] [--repeat 1] [--no-peer]
                           [--json FILE] [--fit-arg=ARG ...]
 --fit-arg passes ARG on to every `duplexfit fit` (repeatable, e.g. --fit-arg=--assembly --fit-arg=host for
 the host assembly on a GPU); the stage table says where the level matrices were assembled.
+--clouds all runs every cloud in DATA/clouds (*.ply, sorted by name): the issue's "every shared cloud" sweep.
 The tables (markdown) go to stdout, progress to stderr.
 """
 import argparse
@@ -122,7 +123,8 @@ def main():
     p.add_argument("--duplexfit", default=os.path.join(HERE, "..", "build", "cli", "duplexfit"))
     p.add_argument("--data", default=os.path.join(HERE, "..", "..", "shared", "data"))
     p.add_argument("--device", action="append", help="device spec (repeatable); default: every device")
-    p.add_argument("--clouds", default=DEFAULT_CLOUDS)
+    p.add_argument("--clouds", default=DEFAULT_CLOUDS,
+                   help="comma-separated cloud names (DATA/clouds/NAME.ply), or all (every *.ply there)")
     p.add_argument("--offset", type=float, default=0.025, help="inward offset delta, the same for both")
     p.add_argument("--repeat", type=int, default=1, help="runs of each side per cloud, alternated; minimum kept")
     p.add_argument("--no-peer", action="store_true", help="skip the two-step peer")
@@ -153,6 +155,16 @@ def main():
             peer_skipped = str(e)
     if peer_skipped:
         log("peer skipped: " + peer_skipped)
+
+    if args.clouds == "all":
+        folder = os.path.join(args.data, "clouds")
+        try:
+            names = sorted(f[:-4] for f in os.listdir(folder) if f.endswith(".ply"))
+        except OSError as e:
+            p.error("--clouds all: cannot list %s: %s" % (folder, e))
+        if not names:
+            p.error("--clouds all: no .ply cloud in %s" % folder)
+        args.clouds = ",".join(names)
 
     clouds = []
     for cloud in args.clouds.split(","):
