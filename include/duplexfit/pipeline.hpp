@@ -114,6 +114,9 @@ struct PipelineReport {
   std::size_t outliersRemoved = 0;     ///< with PipelineOptions::removeOutliers
   std::optional<NormalReport> normals;   ///< when estimated
   std::optional<BilateralReport> denoise;  ///< when denoised
+  /// The input's noise (estimateNoise, after duplicates are merged and before any filter); a cloud that
+  /// looks noisy without --denoise gets a hint on the progress log (the field interpolates the noise).
+  NoiseEstimate noise;
   bool separate = false;
   bool sideTest = false;
   /// The fit; in separate mode the zero level's fit with offsets, Edelta (each offset field's E0 at its

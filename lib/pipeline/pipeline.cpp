@@ -728,6 +728,16 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
     progress.end();
   }
   report.duplicatesMerged = file.points.mergeDuplicates();
+  report.noise = estimateNoise(file.points.positions());
+  if (report.noise.noisy() && !options.denoise) {
+    std::ostringstream line;
+    line << std::setprecision(2) << "hint: the points scatter " << report.noise.ratio
+         << " point spacings off their neighbours' planes (median of " << report.noise.samples
+         << " samples; clean scans stay below " << report.noise.threshold
+         << "): the field interpolates that noise (bumpy surfaces, small bubbles, long meshing); --denoise filters "
+            "the points and fits smoothly";
+    progress.log(line.str());
+  }
   if (options.denoise) {
     BilateralOptions filter = options.denoiseOptions;
     filter.precision = precision;

@@ -499,7 +499,16 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
     for (std::size_t i = 0; i < std::min<std::size_t>(o.indices.size(), 20); ++i) first.push_back(o.indices[i]);
     outliers["first_points"] = std::move(first);
   }
-  w["preprocessing"] = Json{{"normals", std::move(normals)}, {"denoise", std::move(denoise)}, {"outliers", std::move(outliers)}};
+  const NoiseEstimate& ne = report.noise;
+  Json noise{{"method", "median over evenly strided samples of the RMS distance of each sample and its nearest "
+                        "neighbours from their least-squares plane, in median nearest-neighbour distances"},
+             {"ratio", ne.ratio},
+             {"spacing", ne.spacing},
+             {"samples", ne.samples},
+             {"threshold", ne.threshold},
+             {"noisy", ne.noisy()}};
+  w["preprocessing"] = Json{{"normals", std::move(normals)}, {"denoise", std::move(denoise)}, {"outliers", std::move(outliers)},
+                            {"noise", std::move(noise)}};
   if (!separate) {
     addFitReport(w, rep);
   } else {

@@ -3,4 +3,5 @@ list(APPEND DUPLEXFIT_MODULE_SOURCES
   preprocess/preprocess_device.cpp
   preprocess/bilateral.cpp
   preprocess/normals.cpp
-  preprocess/outliers.cpp)
+  preprocess/outliers.cpp
+  preprocess/noise.cpp)

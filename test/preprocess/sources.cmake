@@ -3,4 +3,5 @@ list(APPEND DUPLEXFIT_MODULE_TESTS
   preprocess/test_bilateral.cpp
   preprocess/test_normals.cpp
   preprocess/test_outliers.cpp
+  preprocess/test_noise.cpp
   preprocess/test_preprocess_cli.cpp)

@@ -1,0 +1,114 @@
+// estimateNoise: the scatter of a cloud's points off their local planes in point spacings, against noise of a
+// known size on a sphere, the shared clouds and their noisy twins, and the fit's hint and report.
+#include <doctest/doctest.h>
+
+#include <filesystem>
+#include <string>
+
+#include "cli_runner.hpp"
+#include "data.hpp"
+#include "duplexfit/error.hpp"
+#include "duplexfit/io.hpp"
+#include "duplexfit/preprocess.hpp"
+#include "json_report.hpp"
+#include "preprocess/preprocess_test_util.hpp"
+#include "temp_dir.hpp"
+
+namespace fs = std::filesystem;
+using namespace duplexfit;
+
+TEST_SUITE("preprocess") {
+  TEST_CASE("noise: the ratio follows Gaussian noise of a known size on a sphere") {
+    const NoiseEstimate clean = estimateNoise(testing::noisySphere(20000, 0.5, 0.0).positions());
+    REQUIRE(clean.samples == 5000);
+    CHECK(clean.ratio < 0.05);  // curvature only: h κ / 8-ish
+    CHECK_FALSE(clean.noisy());
+    const double h = clean.spacing;
+    CHECK(h == doctest::Approx(0.0063).epsilon(0.1));  // about sqrt(4π r² / n)
+    double last = clean.ratio;
+    for (const double sigma : {0.1, 0.3, 0.6, 1.0}) {
+      const NoiseEstimate e = estimateNoise(testing::noisySphere(20000, 0.5, sigma * h).positions());
+      CAPTURE(sigma);
+      CAPTURE(e.ratio);
+      CHECK(e.ratio > last);  // grows with the noise
+      last = e.ratio;
+      // Noise of σ per coordinate is σ across the plane too, and it shortens the nearest-neighbour
+      // distances a little: the ratio sits near σ / h, within a factor of two.
+      CHECK(e.ratio > 0.5 * sigma);
+      CHECK(e.ratio < 2.0 * sigma);
+      CHECK(e.noisy() == (sigma >= 0.6));
+    }
+  }
+
+  TEST_CASE("noise: tiny clouds are not measured; bad options are refused") {
+    Points p(5, 3);
+    p << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 1, 1, 1;
+    const NoiseEstimate e = estimateNoise(p);
+    CHECK(e.samples == 0);
+    CHECK_FALSE(e.noisy());
+    Points same = Points::Zero(50, 3);  // every point coincides: no spacing to measure by
+    CHECK(estimateNoise(same).samples == 0);
+    NoiseOptions o;
+    o.neighbours = 3;
+    CHECK_THROWS_AS(estimateNoise(p, o), InvalidArgument);
+    o = NoiseOptions{};
+    o.samples = 0;
+    CHECK_THROWS_AS(estimateNoise(p, o), InvalidArgument);
+    o = NoiseOptions{};
+    o.threshold = -1.0;
+    CHECK_THROWS_AS(estimateNoise(p, o), InvalidArgument);
+  }
+
+  TEST_CASE("noise: the shared clouds are clean and their 0.5% twins noisy") {
+    DUPLEXFIT_SHARED_DATA_DIR(data);
+    const auto measure = [&data](const std::string& name) {
+      PointSet p = readPointCloud(data + "/clouds/" + name + ".ply");
+      p.mergeDuplicates();
+      return estimateNoise(p.positions());
+    };
+    // The clean clouds with the largest ratios (sharp rims between sparse rows, 180 points on a sphere) and
+    // the noisy twins' clean originals.
+    for (const std::string name : {"wheel_29k", "sphere_180", "armadillo_43k", "bunny_35k", "fandisk_50k",
+                                   "thin_torus_20k"}) {
+      const NoiseEstimate e = measure(name);
+      CAPTURE(name);
+      CAPTURE(e.ratio);
+      CHECK(e.samples > 0);
+      CHECK(e.ratio < 0.3);  // wheel_29k 0.22
+      CHECK_FALSE(e.noisy());
+    }
+    for (const std::string name : {"bunny_35k_noise0.5pct", "fandisk_50k_noise0.5pct", "thin_torus_20k_noise0.5pct"}) {
+      const NoiseEstimate e = measure(name);
+      CAPTURE(name);
+      CAPTURE(e.ratio);
+      CHECK(e.ratio > 0.5);  // 0.59-0.64
+      CHECK(e.noisy());
+    }
+  }
+
+  TEST_CASE("noise: fit names a noisy cloud's noise on the log and in report.json, not a clean one's") {
+    DUPLEXFIT_REQUIRE_CLI();
+    testing::TempDir dir("duplexfit-noise");
+    const double h = estimateNoise(testing::noisySphere(1000, 0.5, 0.0).positions()).spacing;
+    for (const double sigma : {0.0, 0.8}) {
+      CAPTURE(sigma);
+      const fs::path cloud = dir.path() / "sphere.ply";
+      writePointCloud(cloud.string(), testing::noisySphere(1000, 0.5, sigma * h));
+      const fs::path out = dir.path() / "out";
+      // A coarse grid without refinement: the interpolated noise would make millions of triangles (1000
+      // points at σ = 0.8 spacings: 1.7M at the default grid), and only the log and the report are tested.
+      const testing::CliRun run = testing::runCli("fit " + cloud.string() +
+                                                  " --offset 0.05 --resolution 48 --refine-levels 0 --no-clean "
+                                                  "--no-project -o " + out.string());
+      CAPTURE(run.err);
+      REQUIRE(run.status == 0);
+      const bool hinted = run.err.find("hint: the points scatter") != std::string::npos;
+      CHECK(hinted == (sigma > 0.0));
+      if (sigma > 0.0) CHECK(run.err.find("--denoise") != std::string::npos);
+      const testing::Json report = testing::parseJson(testing::readFile(out / "report.json"));
+      CHECK(report["preprocessing"]["noise"]["noisy"] == (sigma > 0.0));
+      CHECK(report["preprocessing"]["noise"]["samples"] == 1000);
+      fs::remove_all(out);
+    }
+  }
+}
