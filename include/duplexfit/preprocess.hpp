@@ -200,8 +200,9 @@ struct NoiseEstimate {
 };
 
 /// Estimates the cloud's noise (above). One k-d tree over the points and a k-nearest search of the samples:
-/// about 0.2 s at 550k points (the outlier test builds the same tree: sharing it is left). Clouds under `neighbours` points, or whose samples all coincide with their
-/// neighbours, are not measured (samples = 0). @throws InvalidArgument for bad options.
+/// about 0.2 s at 550k points (the outlier test builds the same tree: sharing it is left). Clouds under
+/// `neighbours` points, or whose samples all coincide with their neighbours, are not measured (samples = 0).
+/// @throws InvalidArgument for bad options.
 NoiseEstimate estimateNoise(const Points& positions, const NoiseOptions& options = {});
 
 }  // namespace duplexfit
