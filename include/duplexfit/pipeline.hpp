@@ -114,7 +114,7 @@ struct PipelineReport {
   std::size_t outliersRemoved = 0;     ///< with PipelineOptions::removeOutliers
   std::optional<NormalReport> normals;   ///< when estimated
   std::optional<BilateralReport> denoise;  ///< when denoised
-  /// The input's noise (estimateNoise, after duplicates are merged and before any filter); a cloud that
+  /// The input's noise (estimateNoise on the points as read, with the outlier test's k-d tree); a cloud that
   /// looks noisy without --denoise gets a hint on the progress log (the field interpolates the noise).
   NoiseEstimate noise;
   bool separate = false;

@@ -681,8 +681,13 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
   const Precision precision = fitOptions.precision;
   validateFinishOptions(options.surface.finish);  // before any work (simplification needs meshoptimizer)
 
-  // Far outliers first: they would set the bounding box of everything after (docs/method.md §9).
-  report.outliers = findOutliers(file.points.positions(), options.outliers);
+  // Far outliers first: they would set the bounding box of everything after (docs/method.md §9). The
+  // input's noise from the same k-d tree (its median is not moved by a few outliers or duplicates).
+  {
+    const NeighborIndex inputIndex(file.points.positions());
+    report.outliers = findOutliers(file.points.positions(), options.outliers, &inputIndex);
+    report.noise = estimateNoise(file.points.positions(), inputIndex);
+  }
   std::string outlierHint;
   if (!report.outliers.indices.empty()) {
     const std::string what = report.outliers.describe(file.points.positions());
@@ -728,7 +733,6 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
     progress.end();
   }
   report.duplicatesMerged = file.points.mergeDuplicates();
-  report.noise = estimateNoise(file.points.positions());
   if (report.noise.noisy() && !options.denoise) {
     std::ostringstream line;
     line << std::setprecision(2) << "hint: the points scatter " << report.noise.ratio

@@ -22,7 +22,7 @@ double median(std::vector<double> v) {
 
 }  // namespace
 
-NoiseEstimate estimateNoise(const Points& positions, const NoiseOptions& options) {
+NoiseEstimate estimateNoise(const Points& positions, const NeighborIndex& index, const NoiseOptions& options) {
   if (options.samples == 0 || options.neighbours < 4 || !(options.threshold > 0.0) || !std::isfinite(options.threshold)) {
     throw InvalidArgument("estimateNoise: samples must be positive, neighbours at least 4 and the threshold positive "
                           "(got " + std::to_string(options.samples) + ", " + std::to_string(options.neighbours) + ", " +
@@ -32,33 +32,65 @@ NoiseEstimate estimateNoise(const Points& positions, const NoiseOptions& options
   out.threshold = options.threshold;
   const Eigen::Index n = positions.rows();
   const auto k = static_cast<Eigen::Index>(options.neighbours);
+  if (index.size() != static_cast<std::size_t>(n)) {
+    throw InvalidArgument("estimateNoise: the index holds " + std::to_string(index.size()) + " points, the cloud " +
+                          std::to_string(n));
+  }
   if (n < k) return out;
   const Eigen::Index count = std::min<Eigen::Index>(n, static_cast<Eigen::Index>(options.samples));
   Points queries(count, 3);
   for (Eigen::Index s = 0; s < count; ++s) queries.row(s) = positions.row(s * n / count);
-  const NeighborIndex index(positions);
-  const NeighborLists near = index.knnSearch(queries, options.neighbours);
-  // Each sample's nearest other point: the second hit (the first is the sample itself, or a point coinciding
-  // with it at distance 0, which the spacing's median then ignores as one of many).
-  std::vector<double> spacing, residual;
-  spacing.reserve(static_cast<std::size_t>(count));
-  residual.reserve(static_cast<std::size_t>(count));
-  for (Eigen::Index s = 0; s < count; ++s) {
-    const auto q = static_cast<std::size_t>(s);
-    if (near.count(q) != static_cast<std::size_t>(k)) continue;
-    const auto first = static_cast<std::size_t>(near.offsets[q]);
-    spacing.push_back(near.distances[first + 1]);
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (Eigen::Index j = 0; j < k; ++j) mean += positions.row(near.indices[first + static_cast<std::size_t>(j)]).transpose();
-    mean /= static_cast<double>(k);
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (Eigen::Index j = 0; j < k; ++j) {
-      const Eigen::Vector3d d = positions.row(near.indices[first + static_cast<std::size_t>(j)]).transpose() - mean;
-      cov += d * d.transpose();
+  // Each sample's neighbourhood: its k nearest distinct points (itself included). Coincident points (unmerged
+  // duplicates) count once, so the few samples whose k hits repeat points are searched again with twice, four
+  // and eight times k hits; the spacing is the nearest distinct point's distance.
+  std::vector<double> spacing(static_cast<std::size_t>(count), 0.0), residual(static_cast<std::size_t>(count), -1.0);
+  std::vector<Eigen::Index> pending(static_cast<std::size_t>(count));
+  for (Eigen::Index s = 0; s < count; ++s) pending[static_cast<std::size_t>(s)] = s;
+  std::vector<Eigen::Vector3d> distinct;
+  for (Eigen::Index want = k; !pending.empty(); want *= 2) {
+    const bool last = want >= 8 * k || want >= n;
+    Points pq(static_cast<Eigen::Index>(pending.size()), 3);
+    for (std::size_t r = 0; r < pending.size(); ++r) pq.row(static_cast<Eigen::Index>(r)) = queries.row(pending[r]);
+    const NeighborLists near = index.knnSearch(pq, static_cast<int>(std::min(want, n)));
+    std::vector<Eigen::Index> again;
+    for (std::size_t r = 0; r < pending.size(); ++r) {
+      distinct.clear();
+      double h = 0.0;
+      for (auto e = near.offsets[r]; e < near.offsets[r + 1] && static_cast<Eigen::Index>(distinct.size()) < k; ++e) {
+        const Eigen::Vector3d x = positions.row(near.indices[static_cast<std::size_t>(e)]).transpose();
+        if (std::find(distinct.begin(), distinct.end(), x) != distinct.end()) continue;
+        if (!distinct.empty() && !(h > 0.0)) h = near.distances[static_cast<std::size_t>(e)];
+        distinct.push_back(x);
+      }
+      if (static_cast<Eigen::Index>(distinct.size()) < k && !last) {
+        again.push_back(pending[r]);
+        continue;
+      }
+      if (distinct.size() < 4 || !(h > 0.0)) continue;  // not measured
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (const Eigen::Vector3d& x : distinct) mean += x;
+      mean /= static_cast<double>(distinct.size());
+      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+      for (const Eigen::Vector3d& x : distinct) cov += (x - mean) * (x - mean).transpose();
+      cov /= static_cast<double>(distinct.size());
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov, Eigen::EigenvaluesOnly);
+      const auto at = static_cast<std::size_t>(pending[r]);
+      spacing[at] = h;
+      residual[at] = std::sqrt(std::max(0.0, eig.eigenvalues()(0)));
     }
-    cov /= static_cast<double>(k);
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov, Eigen::EigenvaluesOnly);
-    residual.push_back(std::sqrt(std::max(0.0, eig.eigenvalues()(0))));
+    pending.swap(again);
+  }
+  // The measured samples, in sample order.
+  {
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < residual.size(); ++i) {
+      if (residual[i] < 0.0) continue;
+      spacing[kept] = spacing[i];
+      residual[kept] = residual[i];
+      ++kept;
+    }
+    spacing.resize(kept);
+    residual.resize(kept);
   }
   if (spacing.empty()) return out;
   out.spacing = median(spacing);
@@ -67,6 +99,11 @@ NoiseEstimate estimateNoise(const Points& positions, const NoiseOptions& options
   out.ratio = median(residual);
   out.samples = residual.size();
   return out;
+}
+
+NoiseEstimate estimateNoise(const Points& positions, const NoiseOptions& options) {
+  const NeighborIndex index(positions);
+  return estimateNoise(positions, index, options);
 }
 
 }  // namespace duplexfit

@@ -7,7 +7,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <sstream>
+#include <string>
 #include <vector>
 
 #include "duplexfit/error.hpp"
@@ -16,7 +18,7 @@
 
 namespace duplexfit {
 
-OutlierReport findOutliers(const Points& positions, const OutlierOptions& options) {
+OutlierReport findOutliers(const Points& positions, const OutlierOptions& options, const NeighborIndex* index) {
   if (!(options.quantile > 0.0 && options.quantile < 0.25)) {
     throw InvalidArgument("findOutliers: quantile must be in (0, 0.25)");
   }
@@ -68,8 +70,13 @@ OutlierReport findOutliers(const Points& positions, const OutlierOptions& option
   const auto k = static_cast<std::size_t>(options.neighbours);
   if (options.isolationFactor == 0.0 || n <= 2 * k) return r;
   // The k-th neighbour distance of every point (the query itself is its own first neighbour).
-  const NeighborIndex index(positions);
-  const NeighborLists knn = index.knnSearch(positions, static_cast<int>(k + 1));
+  if (index != nullptr && index->size() != n) {
+    throw InvalidArgument("findOutliers: the index holds " + std::to_string(index->size()) + " points, the cloud " +
+                          std::to_string(n));
+  }
+  std::optional<NeighborIndex> own;
+  if (index == nullptr) index = &own.emplace(positions);
+  const NeighborLists knn = index->knnSearch(positions, static_cast<int>(k + 1));
   std::vector<double> dk(n, 0.0);
   for (std::size_t i = 0; i < n; ++i) {
     const std::int64_t begin = knn.offsets[i], end = knn.offsets[i + 1];

@@ -9,6 +9,7 @@
 #include "data.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/io.hpp"
+#include "duplexfit/neighbors.hpp"
 #include "duplexfit/preprocess.hpp"
 #include "json_report.hpp"
 #include "preprocess/preprocess_test_util.hpp"
@@ -38,6 +39,33 @@ TEST_SUITE("preprocess") {
       CHECK(e.ratio < 2.0 * sigma);
       CHECK(e.noisy() == (sigma >= 0.6));
     }
+  }
+
+  TEST_CASE("noise: a shared index gives the same estimate; duplicates do not zero the spacing") {
+    const PointSet noisy = testing::noisySphere(8000, 0.5, 0.009);  // about 0.9 spacings
+    const Points& p = noisy.positions();
+    const NeighborIndex index(p);
+    const NoiseEstimate own = estimateNoise(p), shared = estimateNoise(p, index);
+    CHECK(shared.ratio == own.ratio);
+    CHECK(shared.spacing == own.spacing);
+    CHECK(shared.samples == own.samples);
+    CHECK(own.noisy());
+    // The outlier test on the same index: the same report as with its own tree.
+    const OutlierReport a = findOutliers(p), b = findOutliers(p, {}, &index);
+    CHECK(a.indices == b.indices);
+    CHECK(a.medianNeighbourDistance == b.medianNeighbourDistance);
+    // An index over other points is refused by both.
+    const NeighborIndex other(p.topRows(100));
+    CHECK_THROWS_AS(estimateNoise(p, other), InvalidArgument);
+    CHECK_THROWS_AS(findOutliers(p, {}, &other), InvalidArgument);
+    // Every point twice (duplicates not merged yet): the spacing skips the coincident twin.
+    Points twice(2 * p.rows(), 3);
+    twice.topRows(p.rows()) = p;
+    twice.bottomRows(p.rows()) = p;
+    const NoiseEstimate doubled = estimateNoise(twice);
+    REQUIRE(doubled.samples > 0);
+    CHECK(doubled.spacing == doctest::Approx(own.spacing).epsilon(0.15));
+    CHECK(doubled.noisy());
   }
 
   TEST_CASE("noise: tiny clouds are not measured; bad options are refused") {
