@@ -52,6 +52,9 @@ PAPER = {
     "pinion_53k": ("Gear", 53816, 7, 91.68, 24.5),
 }
 DEFAULT_CLOUDS = "fandisk_8k,igea_72k,eight_110k,wheel_118k,fandisk_550k"
+# Issue 15's targets for ours/peer: every shared cloud within 0.7, eight_110k within 1, fandisk_550k within 0.5.
+RATIO_TARGET = {"eight_110k": 1.0, "fandisk_550k": 0.5}
+DEFAULT_RATIO_TARGET = 0.7
 PEER_STAGES = ("read", "poisson", "write_zero", "offset", "write_offset")
 
 
@@ -238,7 +241,9 @@ def main():
                           "stages": peer_best["seconds"], "stages_all": [x["seconds"] for x in peer_runs],
                           "poisson": peer_best["poisson"], "vdb": peer_best["vdb"]} if peer_best else
                          {"skipped": peer_skipped, "error": theirs["error"]}),
-                "ratio_ours_over_peer": ratio})
+                "ratio_ours_over_peer": ratio,
+                "ratio_target": RATIO_TARGET.get(cloud, DEFAULT_RATIO_TARGET),
+                "meets_target": (ratio <= RATIO_TARGET.get(cloud, DEFAULT_RATIO_TARGET)) if ratio else None})
 
     print()
     settings = peer_settings(args.offset)
@@ -249,21 +254,33 @@ def main():
     print()
     print("| device | cloud | points | ours s (min) | ours s, all runs | ours report total s | peer s (min) | "
           "peer s, all runs | peer read / Poisson / write / VDB / write s | peer process s | "
-          "faces zero, offset: ours; peer | ours/peer |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "faces zero, offset: ours; peer | ours/peer | target |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for c in doc_clouds:
         o, q = c["ours"], c["peer"]
         faces = ", ".join(str(n) for n in o["faces"])
         if "min" in q:
             split = " / ".join("%.2f" % q["stages"][k] for k in PEER_STAGES)
             faces += "; %d, %d" % (q["poisson"]["faces"], q["vdb"]["faces"])
+            ratio_cell = "%.2f" % c["ratio_ours_over_peer"]
+            if not c["meets_target"]:
+                ratio_cell = "**%s**" % ratio_cell
             peer_cells = ("%.2f" % q["min"], fmt_times(q["all"]), split, fmt_times(q["process_all"]), faces,
-                          "%.2f" % c["ratio_ours_over_peer"])
+                          ratio_cell, "≤ %g" % c["ratio_target"])
         else:
-            peer_cells = ("skipped" if q["skipped"] else "error", "-", "-", "-", faces, "-")
-        print("| %s | %s | %d | %.2f | %s | %s | %s | %s | %s | %s | %s | %s |" % (
+            peer_cells = ("skipped" if q["skipped"] else "error", "-", "-", "-", faces, "-", "≤ %g" % c["ratio_target"])
+        print("| %s | %s | %d | %.2f | %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
             (c["device"], c["cloud"], c["points"], o["wall_min"], fmt_times(o["wall_all"]),
              fmt_times(o["report_total_all"])) + peer_cells))
+    judged = [c for c in doc_clouds if c["meets_target"] is not None]
+    if judged:
+        missed = [c for c in judged if not c["meets_target"]]
+        print("\nTargets (issue 15: ours/peer within 0.7 on every shared cloud, eight_110k within 1, fandisk_550k "
+              "within 0.5): %d of %d met%s" % (
+                  len(judged) - len(missed), len(judged),
+                  "; missed: " + ", ".join("%s %.2f (%s, target %g)" % (c["cloud"], c["ratio_ours_over_peer"],
+                                                                       c["device"], c["ratio_target"])
+                                           for c in missed) if missed else ""))
     if peer_skipped:
         print("\nThe peer was skipped: %s" % peer_skipped)
 
