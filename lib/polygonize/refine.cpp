@@ -11,12 +11,12 @@
 
 #include <algorithm>
 #include <chrono>
+#include <deque>
 #include <exception>
 #include <cmath>
 #include <limits>
 #include <map>
 #include <stdexcept>
-#include <unordered_map>
 
 #include <omp.h>
 
@@ -137,6 +137,36 @@ class PointMap {
   std::size_t size_ = 0;
 };
 
+/// Per-cell data of the refinement keyed by cell id: a PointMap from the id to a slot of a deque, whose
+/// elements keep their addresses as it grows (the closure holds a cell's tetrahedra and bitmap while splits
+/// add other cells' bitmaps). std::unordered_map did the same with a node chase per lookup, and every split
+/// looks up the cells whose boxes hold its midpoint.
+template <typename T>
+class CellTable {
+ public:
+  /// The entry of cell `key`, value-initialised when new.
+  T& get(std::int64_t key) {
+    const auto k = static_cast<std::uint64_t>(key);
+    if (const std::uint32_t* at = index_.find(k)) return items_[*at];
+    if (items_.size() >= std::numeric_limits<std::uint32_t>::max()) throw std::length_error("refinement: too many cells");
+    index_.emplace(k, static_cast<std::uint32_t>(items_.size()));
+    keys_.push_back(key);
+    return items_.emplace_back();
+  }
+  /// The entry of cell `key`, or null.
+  T* find(std::int64_t key) {
+    const std::uint32_t* at = index_.find(static_cast<std::uint64_t>(key));
+    return at == nullptr ? nullptr : &items_[*at];
+  }
+  /// The cells with an entry, in the order they got it.
+  const std::vector<std::int64_t>& keys() const { return keys_; }
+
+ private:
+  PointMap<std::uint32_t> index_;
+  std::deque<T> items_;
+  std::vector<std::int64_t> keys_;
+};
+
 /// The two children of t (see the file comment).
 void bisect(const FineTet& t, FineTet& c1, FineTet& c2, P3& z) {
   const int k = t.tag;
@@ -201,14 +231,14 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
   const auto id = [&cells](const std::array<int, 3>& c) {
     return c[0] + std::int64_t{cells(0)} * (c[1] + std::int64_t{cells(1)} * c[2]);
   };
-  std::unordered_map<std::int64_t, std::vector<FineTet>> leaves;
+  CellTable<std::vector<FineTet>> leaves;
   std::vector<P3> fresh;
   const auto inGrid = [&cells](const std::array<int, 3>& c) {
     return c[0] >= 0 && c[1] >= 0 && c[2] >= 0 && c[0] < cells(0) && c[1] < cells(1) && c[2] < cells(2);
   };
   /// Cell c (in the grid) with its 6 Kuhn tetrahedra, added when new.
   const auto add = [&](const std::array<int, 3>& c) -> std::vector<FineTet>& {
-    std::vector<FineTet>& tets = leaves[id(c)];
+    std::vector<FineTet>& tets = leaves.get(id(c));
     if (tets.empty()) kuhnTets(c, r.factor, tets);
     return tets;
   };
@@ -221,13 +251,33 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
   // hash probe each; a new midpoint is marked in every cell whose box holds it.
   const auto side = static_cast<std::size_t>(r.factor) + 1;
   const std::size_t bitWords = (side * side * side + 63) / 64;
-  std::unordered_map<std::int64_t, std::vector<std::uint64_t>> boxVertices;
+  CellTable<std::vector<std::uint64_t>> boxVertices;
   const auto localBit = [&](const P3& p, const std::array<int, 3>& c) {
     std::size_t at = 0;
     for (int a = 2; a >= 0; --a) {
       at = at * side + static_cast<std::size_t>(p[static_cast<std::size_t>(a)] - c[static_cast<std::size_t>(a)] * r.factor);
     }
     return at;
+  };
+  /// Whether tetrahedron t of cell c has a marked vertex (`bits`: c's bitmap) in the middle of one of its
+  /// edges. Branch-free over the six edges: half the edges of fine tetrahedra have an odd coordinate sum (no
+  /// lattice midpoint), and that test, taken as a branch, was mispredicted about as often as not. An odd
+  /// sum's rounded-down half still lies in c's box (both ends do), so its bit is read and then ignored.
+  const auto hangs = [&](const FineTet& t, const std::array<int, 3>& c, const std::uint64_t* bits) {
+    std::uint64_t any = 0;
+    for (const auto& e : kEdges) {
+      const P3& a = t.x[static_cast<std::size_t>(e[0])];
+      const P3& b = t.x[static_cast<std::size_t>(e[1])];
+      std::size_t at = 0;
+      std::int32_t odd = 0;
+      for (int d = 2; d >= 0; --d) {
+        const std::int32_t sum = a[static_cast<std::size_t>(d)] + b[static_cast<std::size_t>(d)];
+        odd |= sum;
+        at = at * side + static_cast<std::size_t>((sum >> 1) - c[static_cast<std::size_t>(d)] * r.factor);
+      }
+      any |= (bits[at / 64] >> (at % 64)) & static_cast<std::uint64_t>(~odd & 1);
+    }
+    return any != 0;
   };
   /// The cells (in the grid) whose closed box holds lattice point v: per axis the cell below a node plane
   /// too.
@@ -256,7 +306,7 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
     // Known when marked in any cell holding it (a new one is marked in all of them at once).
     bool first = true, known = false;
     boxesHolding(z, [&](const std::array<int, 3>& c) {
-      std::vector<std::uint64_t>& bits = boxVertices[id(c)];
+      std::vector<std::uint64_t>& bits = boxVertices.get(id(c));
       if (bits.empty()) bits.assign(bitWords, 0);
       const std::size_t b = localBit(z, c);
       if (first) known = ((bits[b / 64] >> (b % 64)) & 1U) != 0;
@@ -301,7 +351,7 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
   // cell's closed box, so each pass visits the cells around the previous pass's new vertices.
   const int maxDepth = 3 * deepest + 3;
   std::vector<std::int64_t> dirty;  // sorted and unique before each pass (the cells in id order)
-  for (const auto& entry : leaves) dirty.push_back(entry.first);
+  dirty = leaves.keys();
   for (;;) {
     for (const P3& v : fresh) {
       boxesHolding(v, [&](const std::array<int, 3>& c) {
@@ -313,33 +363,17 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
     std::sort(dirty.begin(), dirty.end());
     dirty.erase(std::unique(dirty.begin(), dirty.end()), dirty.end());
     for (const std::int64_t key : dirty) {
-      std::vector<FineTet>& tets = leaves[key];
+      std::vector<FineTet>& tets = leaves.get(key);
       const std::array<int, 3> cell{static_cast<int>(key % cells(0)), static_cast<int>((key / cells(0)) % cells(1)),
                                     static_cast<int>(key / (std::int64_t{cells(0)} * cells(1)))};
-      // The cell's bitmap (none yet: no vertex in its box, so no tetrahedron of it hangs). References to
-      // an unordered_map's elements survive its rehashing; a split here adds the cell's own entry.
+      // The cell's bitmap (none yet: no vertex in its box, so no tetrahedron of it hangs). A CellTable's
+      // entries keep their addresses; a split here adds the cell's own entry.
       const std::vector<std::uint64_t>* bits = nullptr;
-      const auto findBits = [&] {
-        const auto box = boxVertices.find(key);
-        bits = box == boxVertices.end() ? nullptr : &box->second;
-      };
+      const auto findBits = [&] { bits = boxVertices.find(key); };
       findBits();
       for (std::size_t t = 0; t < tets.size(); ++t) {
         for (;;) {
-          bool hanging = false;
-          for (const auto& e : kEdges) {
-            P3 m{};
-            if (bits == nullptr ||
-                !midpoint(tets[t].x[static_cast<std::size_t>(e[0])], tets[t].x[static_cast<std::size_t>(e[1])], m)) {
-              continue;
-            }
-            const std::size_t b = localBit(m, cell);
-            if ((((*bits)[b / 64] >> (b % 64)) & 1U) != 0) {
-              hanging = true;
-              break;
-            }
-          }
-          if (!hanging) break;
+          if (bits == nullptr || !hangs(tets[t], cell, bits->data())) break;
           if (tets[t].depth >= maxDepth) {
             throw std::logic_error("refineCells: the conformity closure does not terminate");
           }
@@ -351,18 +385,15 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
     dirty.clear();
     if (fresh.empty()) break;
   }
-  r.cells.reserve(leaves.size());
+  r.cells = leaves.keys();
   std::size_t total = 0;
-  for (const auto& [key, tets] : leaves) {
-    r.cells.push_back(key);
-    total += tets.size();
-  }
+  for (const std::int64_t key : r.cells) total += leaves.get(key).size();
   std::sort(r.cells.begin(), r.cells.end());
   r.offsets.reserve(r.cells.size() + 1);
   r.offsets.push_back(0);
   r.tets.reserve(total);
   for (const std::int64_t key : r.cells) {
-    const std::vector<FineTet>& tets = leaves.at(key);
+    const std::vector<FineTet>& tets = leaves.get(key);
     r.tets.insert(r.tets.end(), tets.begin(), tets.end());
     r.offsets.push_back(r.tets.size());
   }
