@@ -38,19 +38,17 @@ NoiseEstimate estimateNoise(const Points& positions, const NeighborIndex& index,
   }
   if (n < k) return out;
   const Eigen::Index count = std::min<Eigen::Index>(n, static_cast<Eigen::Index>(options.samples));
-  Points queries(count, 3);
-  for (Eigen::Index s = 0; s < count; ++s) queries.row(s) = positions.row(s * n / count);
   // Each sample's neighbourhood: its k nearest distinct points (itself included). Coincident points (unmerged
   // duplicates) count once, so the few samples whose k hits repeat points are searched again with twice, four
   // and eight times k hits; the spacing is the nearest distinct point's distance.
-  std::vector<double> spacing(static_cast<std::size_t>(count), 0.0), residual(static_cast<std::size_t>(count), -1.0);
-  std::vector<Eigen::Index> pending(static_cast<std::size_t>(count));
-  for (Eigen::Index s = 0; s < count; ++s) pending[static_cast<std::size_t>(s)] = s;
+  std::vector<double> spacing, residual;  // of the measured samples, in any order (only medians are taken)
+  std::vector<Eigen::Index> pending(static_cast<std::size_t>(count));  // the samples' rows still to measure
+  for (Eigen::Index s = 0; s < count; ++s) pending[static_cast<std::size_t>(s)] = s * n / count;
   std::vector<Eigen::Vector3d> distinct;
   for (Eigen::Index want = k; !pending.empty(); want *= 2) {
     const bool last = want >= 8 * k || want >= n;
     Points pq(static_cast<Eigen::Index>(pending.size()), 3);
-    for (std::size_t r = 0; r < pending.size(); ++r) pq.row(static_cast<Eigen::Index>(r)) = queries.row(pending[r]);
+    for (std::size_t r = 0; r < pending.size(); ++r) pq.row(static_cast<Eigen::Index>(r)) = positions.row(pending[r]);
     const NeighborLists near = index.knnSearch(pq, static_cast<int>(std::min(want, n)));
     std::vector<Eigen::Index> again;
     for (std::size_t r = 0; r < pending.size(); ++r) {
@@ -74,23 +72,10 @@ NoiseEstimate estimateNoise(const Points& positions, const NeighborIndex& index,
       for (const Eigen::Vector3d& x : distinct) cov += (x - mean) * (x - mean).transpose();
       cov /= static_cast<double>(distinct.size());
       const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov, Eigen::EigenvaluesOnly);
-      const auto at = static_cast<std::size_t>(pending[r]);
-      spacing[at] = h;
-      residual[at] = std::sqrt(std::max(0.0, eig.eigenvalues()(0)));
+      spacing.push_back(h);
+      residual.push_back(std::sqrt(std::max(0.0, eig.eigenvalues()(0))));
     }
     pending.swap(again);
-  }
-  // The measured samples, in sample order.
-  {
-    std::size_t kept = 0;
-    for (std::size_t i = 0; i < residual.size(); ++i) {
-      if (residual[i] < 0.0) continue;
-      spacing[kept] = spacing[i];
-      residual[kept] = residual[i];
-      ++kept;
-    }
-    spacing.resize(kept);
-    residual.resize(kept);
   }
   if (spacing.empty()) return out;
   out.spacing = median(spacing);
