@@ -94,7 +94,10 @@ int cmdFit(int argc, char** argv) {
   app.add_flag("--offset-correction", fit.offsetCorrection, "add the offset-correction level (experimental)");
   app.add_flag("--estimate-normals", o.estimateNormals, "estimate and orient normals first (PCA)");
   addInteger(app, "normals-k", o.normals.k, "neighbours of the normal estimation (default 15)");
-  app.add_flag("--denoise", o.denoise, "bilateral point filter before fitting");
+  CLI::Option* denoiseFlag = app.add_flag("--denoise", o.denoise, "bilateral point filter before fitting");
+  app.add_flag_callback("--no-denoise", [&] { o.denoiseWhenNoisy = false; },
+                        "interpolate a cloud that looks noisy as it is (no automatic filter)")
+      ->excludes(denoiseFlag);
   app.add_flag("--remove-outliers", o.removeOutliers, "drop far outliers (reported in report.json) before fitting");
   addNumber(app, "denoise-sigma-s", o.denoiseOptions.sigmaSpatial, "the filter's spatial width");
   addNumber(app, "denoise-sigma-r", o.denoiseOptions.sigmaRange, "the filter's range width");
@@ -179,6 +182,8 @@ int cmdFit(int argc, char** argv) {
   o.shell = o.shell || o.shellOptions.drained();  // holes imply --shell
   // A denoised cloud is fitted in approximation mode, s = 0.2 as the paper's Fig. 9, unless told otherwise.
   if (o.denoise && app.count("--smoothing") == 0) fit.smoothing = 0.2;
+  // A cloud denoised because it looks noisy (the library's rule) takes --smoothing as given, 0 included.
+  if (app.count("--smoothing") != 0) o.noisySmoothing = fit.smoothing;
   fit.precision = device.precision;
   if (format != "ply" && format != "obj" && format != "stl" && format != "3mf") {
     throw UsageError("--format must be ply, obj, stl or 3mf");

@@ -102,7 +102,10 @@ reference:
                        and named in a warning: points beyond the bulk's box by half its size)
       --denoise        bilateral point filter before fitting (as `duplexfit denoise`); override its
                        rules with --denoise-sigma-s, --denoise-sigma-r, --denoise-radius (input units),
-                       --denoise-iterations N; the fit then defaults to --smoothing 0.2 (paper, Fig. 9)
+                       --denoise-iterations N; the fit then defaults to --smoothing 0.2 (paper, Fig. 9).
+                       Without it a cloud that looks noisy (scatter off its local planes above 0.4 point
+                       spacings, report.json preprocessing.noise) is filtered and fitted so all the same
+      --no-denoise     interpolate a noisy-looking cloud as it is (a hint on the log instead)
       --separate       baseline: fit the surface from the cloud alone and each offset surface from its
                        own offset points alone (one field each: field.dpxf, field_offsetN.dpxf)
       --min-component F  drop mesh components smaller than F of their mesh's area (default 0: none)

@@ -177,6 +177,7 @@ struct FitReport {
   std::vector<double> offsets;         ///< δ in input units
   OffSurfaceSide offSurfaceSide = OffSurfaceSide::Outside;  ///< where the off-surface points went
   double sigma0 = 0.0, sigma1 = 0.0;   ///< input units
+  double smoothing = 0.0;              ///< FitOptions::smoothing as fitted (λ_k = s·k; 0: interpolation)
   int levels = 0;                      ///< M
   bool stoppedEarly = false;           ///< the ε_fit test ended the fit before level M
   std::vector<LevelReport> levelReports;

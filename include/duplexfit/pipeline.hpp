@@ -56,6 +56,14 @@ struct PipelineOptions {
   /// not changed: the CLI's --denoise also defaults --smoothing to 0.2.
   bool denoise = false;
   BilateralOptions denoiseOptions{};
+  /// Without `denoise`: filter the points all the same when the input looks noisy (the estimate every run
+  /// makes, PipelineReport::noise, NoiseEstimate::noisy()), and fit them with fit.smoothing or, when that
+  /// is 0, noisySmoothing (docs/method.md §9): an interpolating fit follows the noise (bumpy surfaces,
+  /// dozens of small bubble components, offsets 4× farther off than the two-step pipeline's on the shared
+  /// noisy clouds). false (the CLI's --no-denoise): the field interpolates the noisy points, with a hint
+  /// on the log. The distributed pipeline does neither (it does not estimate the noise).
+  bool denoiseWhenNoisy = true;
+  double noisySmoothing = 0.2;
   /// Far outliers (findOutliers) are always looked for and reported; with removeOutliers they are dropped
   /// before anything else, otherwise a warning names them.
   bool removeOutliers = false;
@@ -114,9 +122,13 @@ struct PipelineReport {
   std::size_t outliersRemoved = 0;     ///< with PipelineOptions::removeOutliers
   std::optional<NormalReport> normals;   ///< when estimated
   std::optional<BilateralReport> denoise;  ///< when denoised
-  /// The input's noise (estimateNoise on the points as read, with the outlier test's k-d tree); a cloud that
-  /// looks noisy without --denoise gets a hint on the progress log (the field interpolates the noise).
+  /// The input's noise (estimateNoise on the points as read, with the outlier test's k-d tree). A cloud
+  /// that looks noisy is denoised (PipelineOptions::denoiseWhenNoisy) or, when that is off, gets a hint on
+  /// the progress log (the field interpolates the noise).
   NoiseEstimate noise;
+  /// The points were denoised because they looked noisy (denoiseWhenNoisy), not because `denoise` asked;
+  /// the fit's smoothing is then fit.smoothing here (noisySmoothing when the options' was 0).
+  bool denoisedForNoise = false;
   bool separate = false;
   bool sideTest = false;
   /// The fit; in separate mode the zero level's fit with offsets, Edelta (each offset field's E0 at its

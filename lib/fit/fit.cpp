@@ -295,6 +295,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   const Points u = (norm.scale * (points.positions().rowwise() - norm.centre.transpose())).eval();
   const Points nu = options.normalsInward ? points.normals() : Points(-points.normals());
 
+  rep.smoothing = options.smoothing;
   // Offsets in input units (report) and normalised units (fit).
   std::vector<double> deltas;
   rep.offsets = detail::worldOffsets(options.offsets, options.offsetsRelative, side);

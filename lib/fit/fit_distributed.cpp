@@ -271,6 +271,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
     for (std::size_t i = 0; i < ids.size(); ++i) ids[i] = first + static_cast<std::int64_t>(i);
   }
 
+  rep.smoothing = options.smoothing;
   std::vector<double> deltas;
   rep.offsets = detail::worldOffsets(options.offsets, options.offsetsRelative, frame.side);
   for (const double world : rep.offsets) deltas.push_back(world * norm.scale);

@@ -677,7 +677,7 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
   report.secondsRead = readSeconds;
   const std::string& input = report.input;
   const std::string source = input.empty() ? std::string("points") : input;
-  const FitOptions& fitOptions = options.fit;
+  FitOptions fitOptions = options.fit;  // its smoothing set below when noisy points are denoised
   const Precision precision = fitOptions.precision;
   validateFinishOptions(options.surface.finish);  // before any work (simplification needs meshoptimizer)
 
@@ -734,15 +734,22 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
   }
   report.duplicatesMerged = file.points.mergeDuplicates();
   if (report.noise.noisy() && !options.denoise) {
+    report.denoisedForNoise = options.denoiseWhenNoisy;
+    if (report.denoisedForNoise && fitOptions.smoothing == 0.0) fitOptions.smoothing = options.noisySmoothing;
     std::ostringstream line;
-    line << std::setprecision(2) << "hint: the points scatter " << report.noise.ratio
-         << " point spacings off their neighbours' planes (median of " << report.noise.samples
-         << " samples; clean scans stay below " << report.noise.threshold
-         << "): the field interpolates that noise (bumpy surfaces, small bubbles, long meshing); --denoise filters "
-            "the points and fits smoothly";
+    line << std::setprecision(2) << (report.denoisedForNoise ? "" : "hint: ") << "the points scatter "
+         << report.noise.ratio << " point spacings off their neighbours' planes (median of " << report.noise.samples
+         << " samples; clean scans stay below " << report.noise.threshold << "): ";
+    if (report.denoisedForNoise) {
+      line << "filtering them (bilateral) and fitting with smoothing " << fitOptions.smoothing
+           << "; --no-denoise interpolates them as they are";
+    } else {
+      line << "the field interpolates that noise (bumpy surfaces, small bubbles, long meshing); --denoise filters "
+              "the points and fits smoothly";
+    }
     progress.log(line.str());
   }
-  if (options.denoise) {
+  if (options.denoise || report.denoisedForNoise) {
     BilateralOptions filter = options.denoiseOptions;
     filter.precision = precision;
     progress.start("denoise");

@@ -38,6 +38,7 @@ void addFitReport(Json& w, const FitReport& rep) {
   w["off_surface_side"] = offSurfaceSideName(rep.offSurfaceSide);
   w["sigma0"] = rep.sigma0;
   w["sigma1"] = rep.sigma1;
+  w["smoothing"] = rep.smoothing;
   w["levels"] = rep.levels;
   w["stopped_early"] = rep.stoppedEarly;
   Json levels = Json::array();
@@ -460,6 +461,7 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
   if (report.denoise) {
     const BilateralReport& b = *report.denoise;
     denoise = Json{{"method", "bilateral point filter (docs/method.md section 9)"},
+                   {"reason", report.denoisedForNoise ? "noisy input (the noise estimate)" : "asked (--denoise)"},
                    {"sigma_spatial", b.sigmaSpatial},
                    {"sigma_range", b.sigmaRange},
                    {"radius", b.radius},

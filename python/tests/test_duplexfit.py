@@ -353,6 +353,23 @@ class Pipeline(unittest.TestCase):
         with self.assertRaisesRegex(TypeError, "unexpected option 'bogus'"):
             duplexfit.run_pipeline(points, estimate_normals=True, bogus=1)
 
+    def test_run_pipeline_denoises_a_noisy_cloud_unless_told_not_to(self):
+        points, normals = sphere(1000)
+        spacing = np.sqrt(4.0 * np.pi * RADIUS ** 2 / len(points))
+        rng = np.random.default_rng(3)
+        noisy = points + rng.normal(scale=0.8 * spacing, size=points.shape)  # per coordinate
+        common = dict(offsets=[DELTA], resolution=32)
+        auto = duplexfit.run_pipeline(noisy, normals, **common).report
+        self.assertTrue(auto["preprocessing"]["noise"]["noisy"])
+        self.assertEqual(auto["preprocessing"]["denoise"]["reason"], "noisy input (the noise estimate)")
+        self.assertAlmostEqual(auto["smoothing"], 0.2)
+        plain = duplexfit.run_pipeline(noisy, normals, denoise_when_noisy=False, **common).report
+        self.assertIsNone(plain["preprocessing"]["denoise"])
+        self.assertEqual(plain["smoothing"], 0.0)
+        clean = duplexfit.run_pipeline(points, normals, **common).report
+        self.assertFalse(clean["preprocessing"]["noise"]["noisy"])
+        self.assertIsNone(clean["preprocessing"]["denoise"])
+
 
 class Devices(unittest.TestCase):
     def test_devices(self):

@@ -1,5 +1,6 @@
 // estimateNoise: the scatter of a cloud's points off their local planes in point spacings, against noise of a
-// known size on a sphere, the shared clouds and their noisy twins, and the fit's hint and report.
+// known size on a sphere, the shared clouds and their noisy twins, and what the fit does with a noisy cloud
+// (filters it and fits it smoothly unless told not to) and says of it.
 #include <doctest/doctest.h>
 
 #include <filesystem>
@@ -10,7 +11,9 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/neighbors.hpp"
+#include "duplexfit/pipeline.hpp"
 #include "duplexfit/preprocess.hpp"
+#include "duplexfit/device.hpp"
 #include "json_report.hpp"
 #include "preprocess/preprocess_test_util.hpp"
 #include "temp_dir.hpp"
@@ -114,29 +117,89 @@ TEST_SUITE("preprocess") {
     }
   }
 
-  TEST_CASE("noise: fit names a noisy cloud's noise on the log and in report.json, not a clean one's") {
+  TEST_CASE("noise: fit filters a noisy cloud and fits it smoothly, says so, and --no-denoise interpolates it") {
     DUPLEXFIT_REQUIRE_CLI();
     testing::TempDir dir("duplexfit-noise");
     const double h = estimateNoise(testing::noisySphere(1000, 0.5, 0.0).positions()).spacing;
-    for (const double sigma : {0.0, 0.8}) {
-      CAPTURE(sigma);
+    struct Case {
+      double sigma;  // noise in point spacings
+      std::string flags;
+      bool denoised;     // the bilateral filter ran
+      double smoothing;  // the fit's s
+    };
+    for (const Case& c : {Case{0.0, "", false, 0.0}, Case{0.8, "", true, 0.2}, Case{0.8, "--no-denoise", false, 0.0},
+                          Case{0.8, "--smoothing 0.05", true, 0.05}, Case{0.0, "--denoise", true, 0.2}}) {
+      CAPTURE(c.sigma);
+      CAPTURE(c.flags);
       const fs::path cloud = dir.path() / "sphere.ply";
-      writePointCloud(cloud.string(), testing::noisySphere(1000, 0.5, sigma * h));
+      writePointCloud(cloud.string(), testing::noisySphere(1000, 0.5, c.sigma * h));
       const fs::path out = dir.path() / "out";
       // A coarse grid without refinement: the interpolated noise would make millions of triangles (1000
       // points at σ = 0.8 spacings: 1.7M at the default grid), and only the log and the report are tested.
-      const testing::CliRun run = testing::runCli("fit " + cloud.string() +
+      const testing::CliRun run = testing::runCli("fit " + cloud.string() + " " + c.flags +
                                                   " --offset 0.05 --resolution 48 --refine-levels 0 --no-clean "
                                                   "--no-project -o " + out.string());
       CAPTURE(run.err);
       REQUIRE(run.status == 0);
+      const bool noisy = c.sigma > 0.0;
+      const bool told = run.err.find("the points scatter") != std::string::npos;
+      CHECK(told == noisy);
       const bool hinted = run.err.find("hint: the points scatter") != std::string::npos;
-      CHECK(hinted == (sigma > 0.0));
-      if (sigma > 0.0) CHECK(run.err.find("--denoise") != std::string::npos);
+      CHECK(hinted == (noisy && !c.denoised));
+      if (hinted) CHECK(run.err.find("--denoise filters") != std::string::npos);
+      if (noisy && c.denoised) CHECK(run.err.find("--no-denoise interpolates") != std::string::npos);
+      CHECK((run.err.find("bilateral filter:") != std::string::npos) == c.denoised);
       const testing::Json report = testing::parseJson(testing::readFile(out / "report.json"));
-      CHECK(report["preprocessing"]["noise"]["noisy"] == (sigma > 0.0));
+      CHECK(report["preprocessing"]["noise"]["noisy"] == noisy);
       CHECK(report["preprocessing"]["noise"]["samples"] == 1000);
+      CHECK(report["preprocessing"]["denoise"].is_null() == !c.denoised);
+      if (c.denoised) {
+        CHECK(report["preprocessing"]["denoise"]["reason"] ==
+              (c.flags == "--denoise" ? "asked (--denoise)" : "noisy input (the noise estimate)"));
+      }
+      CHECK(report["smoothing"].get<double>() == doctest::Approx(c.smoothing));
       fs::remove_all(out);
     }
+    const testing::CliRun both = testing::runCli("fit " + (dir.path() / "sphere.ply").string() +
+                                                 " --denoise --no-denoise --offset 0.05 -o " + (dir.path() / "x").string());
+    CHECK(both.status == 1);  // a usage error
+    CHECK(both.err.find("--no-denoise") != std::string::npos);
+    CHECK(!fs::exists(dir.path() / "x"));
+  }
+
+  TEST_CASE("noise: the pipeline denoises a noisy cloud unless told not to, with the smoothing it is given") {
+    const Device d = Device::reference();
+    const double h = estimateNoise(testing::noisySphere(600, 0.5, 0.0).positions()).spacing;
+    const PointSet noisy = testing::noisySphere(600, 0.5, 0.8 * h);
+    PipelineOptions o;
+    o.fit.offsets = {0.05};
+    o.surface.resolution = 32;
+    o.surface.polygonize.refineLevels = 0;
+    o.surface.finish.clean = false;
+    o.surface.finish.project = false;
+    o.surface.neckPassMaxFaces = 0;
+    const PipelineReport on = runPipeline(d, noisy, o).report;
+    CHECK(on.noise.noisy());
+    CHECK(on.denoisedForNoise);
+    REQUIRE(on.denoise.has_value());
+    CHECK(on.denoise->moved > 0);
+    CHECK(on.fit.smoothing == doctest::Approx(0.2));
+    o.fit.smoothing = 0.1;
+    CHECK(runPipeline(d, noisy, o).report.fit.smoothing == doctest::Approx(0.1));
+    o.fit.smoothing = 0.0;
+    o.noisySmoothing = 0.0;
+    const PipelineReport plain = runPipeline(d, noisy, o).report;
+    CHECK(plain.denoisedForNoise);
+    CHECK(plain.fit.smoothing == 0.0);
+    o.denoiseWhenNoisy = false;
+    const PipelineReport off = runPipeline(d, noisy, o).report;
+    CHECK_FALSE(off.denoisedForNoise);
+    CHECK_FALSE(off.denoise.has_value());
+    CHECK(off.fit.smoothing == 0.0);
+    o.denoiseWhenNoisy = true;
+    const PipelineReport clean = runPipeline(d, testing::noisySphere(600, 0.5, 0.0), o).report;
+    CHECK_FALSE(clean.noise.noisy());
+    CHECK_FALSE(clean.denoisedForNoise);
+    CHECK_FALSE(clean.denoise.has_value());
   }
 }
