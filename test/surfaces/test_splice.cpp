@@ -40,49 +40,78 @@ double zeroRadius(const ImplicitField& f) {
   return 0.5 * (lo + hi);
 }
 
-/// The bump's zero level extracted and finished as the pipelines do; `grid` its grid.
-Mesh finishedSphere(const FieldEvaluator& evaluator, const ImplicitField& field, const SurfaceOptions& options,
-                    GridSpec& grid) {
-  SurfaceResult first = extractSurfaces(evaluator, field, {0.0}, options);
-  grid = first.grid;
-  FinishResult finished =
-      finishSurfaces(evaluator, field, std::move(first.meshes), {0.0}, grid.cellSize().maxCoeff(), options.finish);
-  return std::move(finished.meshes[0]);
-}
+/// The bump's zero level extracted and finished as the pipelines do, and the splice's steps on it.
+struct FinishedSphere {
+  ImplicitField field = bump();
+  FieldEvaluator evaluator{Device::reference(), field, Precision::Double};
+  double radius = zeroRadius(field);
+  SurfaceOptions options;
+  GridSpec grid;
+  Mesh mesh = [this] {
+    SurfaceResult first = extractSurfaces(evaluator, field, {0.0}, options);
+    grid = first.grid;
+    FinishResult finished =
+        finishSurfaces(evaluator, field, std::move(first.meshes), {0.0}, grid.cellSize().maxCoeff(), options.finish);
+    return std::move(finished.meshes[0]);
+  }();
+  double cell = grid.cellSize().maxCoeff(), side = field.bounds().sizes().maxCoeff();
+
+  /// The level set extracted again with `cells` refined one level more.
+  Mesh extractedAgain(const std::vector<std::array<int, 3>>& cells) const {
+    PolygonizeOptions po = surfacePolygonizeOptions(field, options);
+    po.refineDeeperCells = cells;
+    return polygonize(valueSampler(evaluator), grid, {0.0}, po).meshes[0];
+  }
+  detail::SpliceResult splice(const Mesh& extracted, const std::vector<std::int64_t>& inner,
+                              const std::vector<std::int64_t>& outer) const {
+    return detail::spliceZone(mesh, extracted, grid, inner, outer, detail::fieldGradientSampler(evaluator), 0.0, side,
+                              detail::finishCleanOptions(options.finish, cell),
+                              detail::finishProjectOptions(options.finish, side, cell));
+  }
+  /// A splice's result is one closed oriented sphere without crossing faces, its new vertices within
+  /// `tolerance` (a fraction of the side) of the sphere and its patch within the deviation target.
+  void checkClosedOnTheSphere(const detail::SpliceResult& s, double tolerance) const {
+    const MeshTopology t = analyzeTopology(s.mesh);
+    CHECK(t.watertight());
+    CHECK(t.manifold());
+    CHECK(t.oriented());
+    CHECK(t.components == 1);
+    CHECK(t.eulerCharacteristic == 2);
+    CheckOptions all;
+    CHECK(findSelfIntersections(s.mesh, all).count == 0);
+    double worst = 0.0;
+    for (Eigen::Index v = 0; v < s.patch.vertices.rows(); ++v) {
+      worst = std::max(worst, std::abs(s.patch.vertices.row(v).norm() - radius));
+    }
+    CHECK(worst <= tolerance * side);
+    CHECK(levelSetDeviation(evaluator, field, s.patch, 0.0, 0).relativeMax <= 1e-3);
+  }
+};
 
 }  // namespace
 
 TEST_SUITE("surfaces") {
 
 TEST_CASE("the neck pass's splice: a zone of a finished sphere replaced by a finer extraction, closed and on the sphere") {
-  const ImplicitField field = bump();
-  const FieldEvaluator evaluator(Device::reference(), field, Precision::Double);
-  const double radius = zeroRadius(field);
-  SurfaceOptions options;
-  GridSpec grid;
-  const Mesh mesh = finishedSphere(evaluator, field, options, grid);
-  const double cell = grid.cellSize().maxCoeff(), side = field.bounds().sizes().maxCoeff();
+  const FinishedSphere sphere;
+  const GridSpec& grid = sphere.grid;
+  const Mesh& mesh = sphere.mesh;
   REQUIRE(analyzeTopology(mesh).watertight());
 
   // The cells around a point of the sphere refined one level more, the level set extracted again.
-  const std::array<int, 3> centre = detail::cellOf(grid, radius * Eigen::Vector3d(1.0, 0.3, 0.2).normalized());
+  const std::array<int, 3> centre = detail::cellOf(grid, sphere.radius * Eigen::Vector3d(1.0, 0.3, 0.2).normalized());
   std::vector<std::array<int, 3>> cells;
   for (int dz = -2; dz <= 2; ++dz) {
     for (int dy = -2; dy <= 2; ++dy) {
       for (int dx = -2; dx <= 2; ++dx) cells.push_back({centre[0] + dx, centre[1] + dy, centre[2] + dz});
     }
   }
-  PolygonizeOptions po = surfacePolygonizeOptions(field, options);
-  po.refineDeeperCells = cells;
-  const PolygonizeResult again = polygonize(valueSampler(evaluator), grid, {0.0}, po);
+  const Mesh again = sphere.extractedAgain(cells);
   const std::vector<std::int64_t> inner = detail::dilatedCells(grid, cells, 2);
   const std::vector<std::int64_t> outer = detail::dilatedCells(grid, cells, 3);
   CHECK(inner.size() == 9u * 9u * 9u);
   CHECK(outer.size() == 11u * 11u * 11u);
-  const FieldGradientSampler sampler = detail::fieldGradientSampler(evaluator);
-  const detail::SpliceResult s =
-      detail::spliceZone(mesh, again.meshes[0], grid, inner, outer, sampler, 0.0, side,
-                         detail::finishCleanOptions(options.finish, cell), detail::finishProjectOptions(options.finish, side, cell));
+  const detail::SpliceResult s = sphere.splice(again, inner, outer);
   INFO(s.why);
   REQUIRE(s.ok);
   CHECK(s.loops == 1);  // a disc of the sphere
@@ -91,14 +120,8 @@ TEST_CASE("the neck pass's splice: a zone of a finished sphere replaced by a fin
   // The patch is finer than what it replaced (three levels of refinement there instead of two or none).
   CHECK(s.patch.faces.rows() > static_cast<Eigen::Index>(s.removedFaces));
   CHECK(s.removed.faces.rows() == static_cast<Eigen::Index>(s.removedFaces));
-  const MeshTopology t = analyzeTopology(s.mesh);
-  CHECK(t.watertight());
-  CHECK(t.manifold());
-  CHECK(t.oriented());
-  CHECK(t.components == 1);
-  CHECK(t.eulerCharacteristic == 2);
-  CheckOptions all;
-  CHECK(findSelfIntersections(s.mesh, all).count == 0);
+  // On the sphere: the new vertices projected onto it (the band's faces and the patch's within the target).
+  sphere.checkClosedOnTheSphere(s, 1e-5);
   CHECK(s.mesh.faces.rows() == mesh.faces.rows() - static_cast<Eigen::Index>(s.removedFaces) +
                                    static_cast<Eigen::Index>(s.newFaces.size()));
   // Every face outside the zone is the finished mesh's, the same three points.
@@ -120,27 +143,15 @@ TEST_CASE("the neck pass's splice: a zone of a finished sphere replaced by a fin
   }
   CHECK(changed == 0);
   CHECK(old == static_cast<std::size_t>(mesh.faces.rows()) - s.removedFaces);
-  // On the sphere: the new vertices projected onto it (the band's faces and the patch's within the target).
-  double worst = 0.0;
-  for (Eigen::Index v = 0; v < s.patch.vertices.rows(); ++v) {
-    worst = std::max(worst, std::abs(s.patch.vertices.row(v).norm() - radius));
-  }
-  CHECK(worst <= 1e-5 * side);
-  const LevelSetDeviation d = levelSetDeviation(evaluator, field, s.patch, 0.0, 0);
-  CHECK(d.relativeMax <= 1e-3);
 
   // Refused, nothing made: a patch with no face in the zone (one hole loop, no patch loop) and an inner zone
   // that reaches past the outer one (the boundaries cross: not the same number of loops, or too far).
-  const detail::SpliceResult none = detail::spliceZone(mesh, Mesh{}, grid, inner, outer, sampler, 0.0, side,
-                                                       detail::finishCleanOptions(options.finish, cell),
-                                                       detail::finishProjectOptions(options.finish, side, cell));
+  const detail::SpliceResult none = sphere.splice(Mesh{}, inner, outer);
   CHECK_FALSE(none.ok);
   CHECK(none.why.find("boundary loops") != std::string::npos);
   CHECK(none.mesh.faces.rows() == 0);
   const std::vector<std::int64_t> nowhere = detail::dilatedCells(grid, {{0, 0, 0}}, 1);  // a corner: no face
-  const detail::SpliceResult empty = detail::spliceZone(mesh, again.meshes[0], grid, nowhere, nowhere, sampler, 0.0,
-                                                        side, detail::finishCleanOptions(options.finish, cell),
-                                                        detail::finishProjectOptions(options.finish, side, cell));
+  const detail::SpliceResult empty = sphere.splice(again, nowhere, nowhere);
   CHECK_FALSE(empty.ok);
   CHECK(empty.why == "no face of the mesh in the zone");
 }
@@ -150,23 +161,17 @@ TEST_CASE("the neck pass's splice where the level set grazes the zone's boundary
   // outer zone reaches a layer lower, so the sphere's cap in the outer zone is much wider than in the
   // inner one (a nearly tangent cut). The patch is the extraction's faces about a cell inside the hole,
   // not those of the inner zone (whose boundary would run several cells from the hole's).
-  const ImplicitField field = bump();
-  const FieldEvaluator evaluator(Device::reference(), field, Precision::Double);
-  const double radius = zeroRadius(field);
-  SurfaceOptions options;
-  GridSpec grid;
-  const Mesh mesh = finishedSphere(evaluator, field, options, grid);
-  const double cell = grid.cellSize().maxCoeff(), side = field.bounds().sizes().maxCoeff();
-  const std::array<int, 3> pole = detail::cellOf(grid, Eigen::Vector3d(0.0, 0.0, radius));
+  const FinishedSphere sphere;
+  const GridSpec& grid = sphere.grid;
+  const Mesh& mesh = sphere.mesh;
+  const double cell = sphere.cell;
+  const std::array<int, 3> pole = detail::cellOf(grid, Eigen::Vector3d(0.0, 0.0, sphere.radius));
   std::vector<std::array<int, 3>> cells;
   for (int dz = 2; dz <= 4; ++dz) {
     for (int dy = -12; dy <= 12; ++dy) {
       for (int dx = -12; dx <= 12; ++dx) cells.push_back({pole[0] + dx, pole[1] + dy, pole[2] + dz});
     }
   }
-  PolygonizeOptions po = surfacePolygonizeOptions(field, options);
-  po.refineDeeperCells = cells;
-  const PolygonizeResult again = polygonize(valueSampler(evaluator), grid, {0.0}, po);
   const std::vector<std::int64_t> inner = detail::dilatedCells(grid, cells, 2);
   const std::vector<std::int64_t> outer = detail::dilatedCells(grid, cells, 3);
   // The caps: the mesh's faces in each zone, the farthest from the pole's axis.
@@ -184,28 +189,13 @@ TEST_CASE("the neck pass's splice where the level set grazes the zone's boundary
   };
   INFO("cell " << cell << ", cap radius in the inner zone " << capRadius(inner) << ", in the outer " << capRadius(outer));
   REQUIRE(capRadius(outer) - capRadius(inner) > 3.0 * cell);  // the case: inner-zone rims would not pair up
-  const detail::SpliceResult s =
-      detail::spliceZone(mesh, again.meshes[0], grid, inner, outer, detail::fieldGradientSampler(evaluator), 0.0, side,
-                         detail::finishCleanOptions(options.finish, cell), detail::finishProjectOptions(options.finish, side, cell));
+  const detail::SpliceResult s = sphere.splice(sphere.extractedAgain(cells), inner, outer);
   INFO(s.why);
   REQUIRE(s.ok);
   CHECK(s.loops == 1);
-  const MeshTopology t = analyzeTopology(s.mesh);
-  CHECK(t.watertight());
-  CHECK(t.manifold());
-  CHECK(t.oriented());
-  CHECK(t.components == 1);
-  CHECK(t.eulerCharacteristic == 2);
-  CheckOptions all;
-  CHECK(findSelfIntersections(s.mesh, all).count == 0);
-  double worst = 0.0;
-  for (Eigen::Index v = 0; v < s.patch.vertices.rows(); ++v) {
-    worst = std::max(worst, std::abs(s.patch.vertices.row(v).norm() - radius));
-  }
   // (A handful of the band's moves are refused by the projection's angle test, which leaves those
   // vertices where the extraction put them: within a tenth of the deviation target, not 1e-5 of the side.)
-  CHECK(worst <= 1e-4 * side);
-  CHECK(levelSetDeviation(evaluator, field, s.patch, 0.0, 0).relativeMax <= 1e-3);
+  sphere.checkClosedOnTheSphere(s, 1e-4);
 }
 
 TEST_CASE("the neck pass's boxes: one per cluster of cells, a margin around, overlapping ones merged") {
