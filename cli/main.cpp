@@ -70,7 +70,7 @@ reference:
       --normals-inward the input normals point into the solid
       --validity-tol η offset validity tolerance (default 0.01)
       --levels M       number of levels (default: from the point density)
-      --smoothing s    approximation mode, λ_k = s·k (default 0: interpolation)
+      --smoothing s    approximation mode, λ_k = s·k (default 0: interpolation; 0.2 when the cloud is filtered)
       --fit-tol ε      stop early when the residual at the next level's centres is below ε
       --tol T, --max-iterations N   CG tolerance and cap
       --cell H / --resolution R     marching grid cell size (default σ_M/2 within [side/512,
