@@ -220,8 +220,10 @@ constexpr int kNeckRounds = 2;
 /// Cells around each point beyond the limit refined one level more (a cube of 2r + 1 cells a side).
 constexpr int kNeckRadius = 2;
 
-/// Cells beyond the neck pass's cells whose faces the local replacement takes from the new extraction; one
-/// more ring of the finished mesh's faces goes, and the band between fills it.
+/// The local replacement's zones around the neck pass's cells: the finished mesh's faces within
+/// kSpliceInner + kSpliceGap cells go (the outer zone), and the new extraction's there come, those about a
+/// cell from the faces that stay, in pieces that reach within kSpliceInner cells (spliceZone); the band
+/// between fills the rest.
 constexpr int kSpliceInner = 4;
 constexpr int kSpliceGap = 1;
 /// Cells around each cluster of the replaced zone in the box extracted again.
@@ -433,7 +435,7 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
     PolygonizeOptions po = surfacePolygonizeOptions(field, surface);
     po.refineDeeperCells = cells;
     // First the local replacement: the level set extracted in boxes around the cells only, its faces within
-    // kSpliceInner cells of them finished on their own and spliced into the mesh.
+    // the zone around them finished on their own and spliced into the mesh.
     if (surface.localNeckPass && surface.finish.clean && surface.finish.project &&
         surface.finish.simplify.maxTriangles == 0 && !(surface.finish.simplify.maxError > 0.0)) {
       // The zone: the cells new in this round (the earlier rounds' are already in the mesh).

@@ -186,10 +186,19 @@ std::vector<Eigen::Index> selectPatch(const Mesh& finished, const std::vector<Ei
     std::sort(near.begin(), near.end());
     near.erase(std::unique(near.begin(), near.end()), near.end());
   }
+  // The kept faces with a corner or their centre there (a point within a cell of the outer zone lies in
+  // one of those cells).
+  std::vector<char> cornerNear(static_cast<std::size_t>(finished.vertices.rows()), 0);
+  for (Eigen::Index v = 0; v < finished.vertices.rows(); ++v) {
+    cornerNear[static_cast<std::size_t>(v)] = inSorted(near, cellId(grid, Vec(finished.vertices.row(v).transpose()))) ? 1 : 0;
+  }
   PointBuckets keptNear(grid.box.min(), gap);
   for (const Eigen::Index f : kept) {
     const Vec c = centroid(finished, f);
-    if (!inSorted(near, cellId(grid, c))) continue;
+    if (!cornerNear[static_cast<std::size_t>(finished.faces(f, 0))] && !cornerNear[static_cast<std::size_t>(finished.faces(f, 1))] &&
+        !cornerNear[static_cast<std::size_t>(finished.faces(f, 2))] && !inSorted(near, cellId(grid, c))) {
+      continue;
+    }
     const Vec n = faceNormal(finished, f);
     keptNear.add(c, n);
     for (int k = 0; k < 3; ++k) keptNear.add(Vec(finished.vertices.row(finished.faces(f, k)).transpose()), n);

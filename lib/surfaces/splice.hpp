@@ -50,11 +50,13 @@ std::vector<std::array<int, 6>> zoneBoxes(const GridSpec& grid, const std::vecto
 std::vector<std::int64_t> dilatedCells(const GridSpec& grid, const std::vector<std::array<int, 3>>& cells, int radius);
 
 /// Replaces the faces of `finished` (closed, oriented, 2-manifold) whose centroid lies in a cell of
-/// `outer` by the faces of `extracted` whose centroid lies in a cell of `inner` (inner ⊂ outer, one cell
-/// thinner; both sorted linear ids of `grid`), joined by a band zipped between the boundary loops of the
-/// two. The patch and band are cleaned (`clean`; their boundary, which is `finished`'s, is locked) and
-/// projected onto {f = iso} with their boundary held (`project`). Not ok (nothing changed) when the
-/// boundaries are not simple loops that pair up one to one within three cells.
+/// `outer` by the faces of `extracted` there that lie farther than ¾ of a cell from the faces that stay
+/// (facing the same way), tidied into pieces that reach `inner` (inner ⊂ outer, one cell thinner; both
+/// sorted linear ids of `grid`); strips of the hole with no patch face within 1.5 cells stay. The two are
+/// joined by a band zipped between the boundary loops of the two. The patch and band are cleaned (`clean`;
+/// their boundary, which is `finished`'s, is locked) and projected onto {f = iso} with their boundary held
+/// (`project`). Not ok (nothing changed) when the boundaries are not simple loops that pair up one to one
+/// within three cells.
 SpliceResult spliceZone(const Mesh& finished, const Mesh& extracted, const GridSpec& grid,
                         const std::vector<std::int64_t>& inner, const std::vector<std::int64_t>& outer,
                         const FieldGradientSampler& sampler, double iso, double side, const CleanOptions& clean,
