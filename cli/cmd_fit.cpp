@@ -57,7 +57,8 @@ int cmdFit(int argc, char** argv) {
   addNumber(app, "validity-tol", fit.validityTolerance, "offset validity tolerance (default 0.01)");
   addInteger(app, "levels", fit.levels, "number of levels (default: from the point density)");
   addNumber(app, "alpha", fit.alpha, "sigma_1 = alpha * bounding-box diagonal (default 0.75)");
-  addNumber(app, "smoothing", fit.smoothing, "approximation mode, lambda_k = s k (default 0; 0.2 with --denoise or a noisy-looking cloud)");
+  addNumber(app, "smoothing", fit.smoothing,
+            "approximation mode, lambda_k = s k (default 0; 0.2 with --denoise or a noisy-looking cloud)");
   addNumber(app, "fit-tol", fit.fitTolerance, "stop early when the residual at the next level's centres is below it");
   addNumber(app, "tol", fit.solver.relativeTolerance, "CG relative tolerance");
   addNumber(app, "coarse-tol", fit.coarseTolerance, "CG relative tolerance of the levels below the finest");

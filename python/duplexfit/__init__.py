@@ -97,7 +97,8 @@ def fit(points, normals, offsets=(), *, device=None, progress=None, levels=None,
 
 def run_pipeline(source, normals=None, offsets=(), *, device=None, progress=None, out_dir=None,
                  mesh_format="ply", separate=False, estimate_normals=False, denoise=False,
-                 denoise_when_noisy=True, noisy_smoothing=0.2, remove_outliers=False, cell=None, resolution=None, clean=True, max_triangles=0,
+                 denoise_when_noisy=True, noisy_smoothing=0.2, remove_outliers=False, cell=None,
+                 resolution=None, clean=True, max_triangles=0,
                  max_error=0.0, **fit_options):
     """The whole job of `duplexfit fit` and returns a duplexfit.PipelineResult.
 
