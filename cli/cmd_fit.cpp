@@ -181,10 +181,9 @@ int cmdFit(int argc, char** argv) {
   checkOutputFolderName(outDir, "fit");
   for (const std::string& h : holes) parseDrainHoleSpec(h, o.shellOptions);
   o.shell = o.shell || o.shellOptions.drained();  // holes imply --shell
-  // A denoised cloud is fitted in approximation mode, s = 0.2 as the paper's Fig. 9, unless told otherwise.
-  if (o.denoise && app.count("--smoothing") == 0) fit.smoothing = 0.2;
-  // A cloud denoised because it looks noisy (the library's rule) takes --smoothing as given, 0 included.
-  if (app.count("--smoothing") != 0) o.noisySmoothing = fit.smoothing;
+  // A filtered cloud is fitted with s = 0.2 (the library's rule, the paper's Fig. 9) unless --smoothing says
+  // otherwise, 0 included.
+  if (app.count("--smoothing") != 0) o.denoiseSmoothing = fit.smoothing;
   fit.precision = device.precision;
   if (format != "ply" && format != "obj" && format != "stl" && format != "3mf") {
     throw UsageError("--format must be ply, obj, stl or 3mf");

@@ -52,18 +52,17 @@ struct PipelineOptions {
   /// Estimate the normals (estimateNormals) instead of reading them; the input then needs none.
   bool estimateNormals = false;
   NormalOptions normals{};
-  /// Bilateral point filter (bilateralFilter) after the normals, before the fit. The fit's smoothing is
-  /// not changed: the CLI's --denoise also defaults --smoothing to 0.2.
+  /// Bilateral point filter (bilateralFilter) after the normals, before the fit. A filtered cloud is fitted
+  /// with fit.smoothing or, when that is 0, denoiseSmoothing (the paper's s = 0.2, Fig. 9).
   bool denoise = false;
   BilateralOptions denoiseOptions{};
+  double denoiseSmoothing = 0.2;
   /// Without `denoise`: filter the points all the same when the input looks noisy (the estimate every run
-  /// makes, PipelineReport::noise, NoiseEstimate::noisy()), and fit them with fit.smoothing or, when that
-  /// is 0, noisySmoothing (docs/method.md §9): an interpolating fit follows the noise (bumpy surfaces,
-  /// dozens of small bubble components, offsets 4× farther off than the two-step pipeline's on the shared
-  /// noisy clouds). false (the CLI's --no-denoise): the field interpolates the noisy points, with a hint
-  /// on the log. The distributed pipeline does neither (it does not estimate the noise).
+  /// makes, PipelineReport::noise, NoiseEstimate::noisy()), docs/method.md §9: an interpolating fit follows
+  /// the noise (bumpy surfaces, dozens of small bubble components, offsets 4× farther off than the two-step
+  /// pipeline's on the shared noisy clouds). false (the CLI's --no-denoise): the field interpolates the noisy
+  /// points, with a hint on the log. The distributed pipeline does neither (it does not estimate the noise).
   bool denoiseWhenNoisy = true;
-  double noisySmoothing = 0.2;
   /// Far outliers (findOutliers) are always looked for and reported; with removeOutliers they are dropped
   /// before anything else, otherwise a warning names them.
   bool removeOutliers = false;
@@ -126,8 +125,7 @@ struct PipelineReport {
   /// that looks noisy is denoised (PipelineOptions::denoiseWhenNoisy) or, when that is off, gets a hint on
   /// the progress log (the field interpolates the noise).
   NoiseEstimate noise;
-  /// The points were denoised because they looked noisy (denoiseWhenNoisy), not because `denoise` asked;
-  /// the fit's smoothing is then fit.smoothing here (noisySmoothing when the options' was 0).
+  /// The points were denoised because they looked noisy (denoiseWhenNoisy), not because `denoise` asked.
   bool denoisedForNoise = false;
   bool separate = false;
   bool sideTest = false;

@@ -679,7 +679,7 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
   report.secondsRead = readSeconds;
   const std::string& input = report.input;
   const std::string source = input.empty() ? std::string("points") : input;
-  FitOptions fitOptions = options.fit;  // its smoothing set below when noisy points are denoised
+  FitOptions fitOptions = options.fit;  // its smoothing set below when the points are filtered
   const Precision precision = fitOptions.precision;
   validateFinishOptions(options.surface.finish);  // before any work (simplification needs meshoptimizer)
 
@@ -735,9 +735,10 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
     progress.end();
   }
   report.duplicatesMerged = file.points.mergeDuplicates();
+  const bool filterPoints = options.denoise || (report.noise.noisy() && options.denoiseWhenNoisy);
+  if (filterPoints && fitOptions.smoothing == 0.0) fitOptions.smoothing = options.denoiseSmoothing;
   if (report.noise.noisy() && !options.denoise) {
     report.denoisedForNoise = options.denoiseWhenNoisy;
-    if (report.denoisedForNoise && fitOptions.smoothing == 0.0) fitOptions.smoothing = options.noisySmoothing;
     std::ostringstream line;
     line << std::setprecision(2) << (report.denoisedForNoise ? "" : "hint: ") << "the points scatter "
          << report.noise.ratio << " point spacings off their neighbours' planes (median of " << report.noise.samples
@@ -751,7 +752,7 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
     }
     progress.log(line.str());
   }
-  if (options.denoise || report.denoisedForNoise) {
+  if (filterPoints) {
     BilateralOptions filter = options.denoiseOptions;
     filter.precision = precision;
     progress.start("denoise");

@@ -97,7 +97,7 @@ def fit(points, normals, offsets=(), *, device=None, progress=None, levels=None,
 
 def run_pipeline(source, normals=None, offsets=(), *, device=None, progress=None, out_dir=None,
                  mesh_format="ply", separate=False, estimate_normals=False, denoise=False,
-                 denoise_when_noisy=True, noisy_smoothing=0.2, remove_outliers=False, cell=None,
+                 denoise_when_noisy=True, denoise_smoothing=0.2, remove_outliers=False, cell=None,
                  resolution=None, clean=True, max_triangles=0,
                  max_error=0.0, **fit_options):
     """The whole job of `duplexfit fit` and returns a duplexfit.PipelineResult.
@@ -109,13 +109,14 @@ def run_pipeline(source, normals=None, offsets=(), *, device=None, progress=None
     content. With out_dir, result.write(out_dir, mesh_format) is called (zero.ply, offset1.ply, ...,
     field.dpxf, report.json). separate: the separate-fit baseline. cell / resolution: the marching grid
     (default sigma_M/2). max_triangles / max_error: simplification (needs meshoptimizer).
-    denoise_when_noisy: a cloud whose noise estimate says noisy (report["preprocessing"]["noise"]) is
-    filtered as with denoise and fitted with smoothing noisy_smoothing (when smoothing is 0). The other
+    denoise: the bilateral filter; a filtered cloud is fitted with smoothing denoise_smoothing (when
+    smoothing is 0). denoise_when_noisy: a cloud whose noise estimate says noisy
+    (report["preprocessing"]["noise"]) is filtered all the same. The other
     keywords are those of fit() (merge_duplicates excepted: the pipeline always merges).
     """
     options = dict(fit_options)
     options.update(offsets=_offsets(offsets), separate=separate, estimate_normals=estimate_normals,
-                   denoise=denoise, denoise_when_noisy=denoise_when_noisy, noisy_smoothing=noisy_smoothing,
+                   denoise=denoise, denoise_when_noisy=denoise_when_noisy, denoise_smoothing=denoise_smoothing,
                    remove_outliers=remove_outliers, cell=cell, resolution=resolution,
                    clean=clean, max_triangles=max_triangles, max_error=max_error)
     result = _native._run_pipeline(source, normals, options, device, progress)

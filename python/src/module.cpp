@@ -407,7 +407,7 @@ PyPipelineResult runPipelineFrom(const py::object& source, const py::object& nor
   reader.get("estimate_normals", o.estimateNormals);
   reader.get("denoise", o.denoise);
   reader.get("denoise_when_noisy", o.denoiseWhenNoisy);
-  reader.get("noisy_smoothing", o.noisySmoothing);
+  reader.get("denoise_smoothing", o.denoiseSmoothing);
   reader.get("remove_outliers", o.removeOutliers);
   reader.get("cell", o.surface.cell);
   reader.get("resolution", o.surface.resolution);

@@ -369,6 +369,9 @@ class Pipeline(unittest.TestCase):
         clean = duplexfit.run_pipeline(points, normals, **common).report
         self.assertFalse(clean["preprocessing"]["noise"]["noisy"])
         self.assertIsNone(clean["preprocessing"]["denoise"])
+        asked = duplexfit.run_pipeline(points, normals, denoise=True, denoise_smoothing=0.1, **common).report
+        self.assertEqual(asked["preprocessing"]["denoise"]["reason"], "asked (--denoise)")
+        self.assertAlmostEqual(asked["smoothing"], 0.1)
 
 
 class Devices(unittest.TestCase):

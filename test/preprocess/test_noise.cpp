@@ -167,7 +167,7 @@ TEST_SUITE("preprocess") {
     CHECK(!fs::exists(dir.path() / "x"));
   }
 
-  TEST_CASE("noise: the pipeline denoises a noisy cloud unless told not to, with the smoothing it is given") {
+  TEST_CASE("noise: the pipeline filters a noisy cloud unless told not to, and fits a filtered one with denoiseSmoothing") {
     const Device d = Device::reference();
     const double h = estimateNoise(testing::noisySphere(600, 0.5, 0.0).positions()).spacing;
     const PointSet noisy = testing::noisySphere(600, 0.5, 0.8 * h);
@@ -187,10 +187,11 @@ TEST_SUITE("preprocess") {
     o.fit.smoothing = 0.1;
     CHECK(runPipeline(d, noisy, o).report.fit.smoothing == doctest::Approx(0.1));
     o.fit.smoothing = 0.0;
-    o.noisySmoothing = 0.0;
+    o.denoiseSmoothing = 0.0;
     const PipelineReport plain = runPipeline(d, noisy, o).report;
     CHECK(plain.denoisedForNoise);
     CHECK(plain.fit.smoothing == 0.0);
+    o.denoiseSmoothing = 0.2;
     o.denoiseWhenNoisy = false;
     const PipelineReport off = runPipeline(d, noisy, o).report;
     CHECK_FALSE(off.denoisedForNoise);
@@ -201,5 +202,11 @@ TEST_SUITE("preprocess") {
     CHECK_FALSE(clean.noise.noisy());
     CHECK_FALSE(clean.denoisedForNoise);
     CHECK_FALSE(clean.denoise.has_value());
+    CHECK(clean.fit.smoothing == 0.0);
+    o.denoise = true;  // asked: filtered and fitted with denoiseSmoothing, noisy or not
+    const PipelineReport asked = runPipeline(d, testing::noisySphere(600, 0.5, 0.0), o).report;
+    CHECK_FALSE(asked.denoisedForNoise);
+    CHECK(asked.denoise.has_value());
+    CHECK(asked.fit.smoothing == doctest::Approx(0.2));
   }
 }
