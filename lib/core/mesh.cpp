@@ -11,38 +11,14 @@
 
 #include <Eigen/Geometry>
 
+#include "core/disjoint_sets.hpp"
 #include "duplexfit/error.hpp"
 
 namespace duplexfit {
 
 namespace {
 
-/// Union-find with path halving and union by size.
-class DisjointSets {
- public:
-  explicit DisjointSets(std::size_t n) : parent_(n), size_(n, 1) {
-    std::iota(parent_.begin(), parent_.end(), std::size_t{0});
-  }
-  std::size_t find(std::size_t x) {
-    while (parent_[x] != x) {
-      parent_[x] = parent_[parent_[x]];
-      x = parent_[x];
-    }
-    return x;
-  }
-  void unite(std::size_t a, std::size_t b) {
-    a = find(a);
-    b = find(b);
-    if (a == b) return;
-    if (size_[a] < size_[b]) std::swap(a, b);
-    parent_[b] = a;
-    size_[a] += size_[b];
-  }
-
- private:
-  std::vector<std::size_t> parent_;
-  std::vector<std::size_t> size_;
-};
+using detail::DisjointSets;
 
 /// Throws InvalidArgument naming the first face with an index outside [0, #V).
 void checkIndices(const Mesh& mesh, const char* caller) {

@@ -14,6 +14,7 @@
 
 #include <sstream>
 
+#include "core/disjoint_sets.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/measure.hpp"
 #include "measure/geometry.hpp"
@@ -32,21 +33,7 @@ using geom::sub;
 constexpr double kRelTol = 1e-10;  // geometric tolerance relative to the larger triangle's longest edge
 constexpr std::size_t kQueryGroup = 4;  // faces a walk of the pair search's tree serves
 
-class DisjointSets {
- public:
-  explicit DisjointSets(std::size_t n) : parent_(n) { std::iota(parent_.begin(), parent_.end(), std::size_t{0}); }
-  std::size_t find(std::size_t x) {
-    while (parent_[x] != x) {
-      parent_[x] = parent_[parent_[x]];
-      x = parent_[x];
-    }
-    return x;
-  }
-  void unite(std::size_t a, std::size_t b) { parent_[find(a)] = find(b); }
-
- private:
-  std::vector<std::size_t> parent_;
-};
+using detail::DisjointSets;
 
 /// Connected cycles of boundary edges (edges of exactly one non-degenerate face).
 std::size_t countBoundaryLoops(const Mesh& mesh) {

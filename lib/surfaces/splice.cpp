@@ -8,6 +8,9 @@
 #include <unordered_set>
 #include <utility>
 
+#include "core/disjoint_sets.hpp"
+#include "duplexfit/neighbors.hpp"
+
 namespace duplexfit::detail {
 
 namespace {
@@ -100,56 +103,19 @@ std::vector<std::vector<Index>> loopsAlong(const Mesh& m, const std::vector<Eige
 /// Labels of the pieces of `faces` of `m` joined by shared corners: for each slot of `faces`, the slot of
 /// its piece's root.
 std::vector<std::size_t> piecesOf(const Mesh& m, const std::vector<Eigen::Index>& faces) {
-  std::vector<std::size_t> parent(faces.size());
-  for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = i;
-  const auto root = [&](std::size_t i) {
-    while (parent[i] != i) i = parent[i] = parent[parent[i]];
-    return i;
-  };
-  std::unordered_map<Index, std::size_t> owner;
+  DisjointSets sets(faces.size());
+  std::unordered_map<Index, std::size_t> owner;  // a corner's first face slot
   owner.reserve(2 * faces.size());
   for (std::size_t i = 0; i < faces.size(); ++i) {
     for (int k = 0; k < 3; ++k) {
       const auto [it, fresh] = owner.emplace(m.faces(faces[i], k), i);
-      if (!fresh) parent[root(i)] = root(it->second);
+      if (!fresh) sets.unite(i, it->second);
     }
   }
-  for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = root(i);
-  return parent;
+  std::vector<std::size_t> label(faces.size());
+  for (std::size_t i = 0; i < faces.size(); ++i) label[i] = sets.find(i);
+  return label;
 }
-
-/// Points with a direction, hashed by cubes of a side `radius`, for "is one within `radius`" queries.
-class PointBuckets {
- public:
-  explicit PointBuckets(Vec origin, double radius) : origin_(std::move(origin)), radius_(radius) {}
-  void add(const Vec& p, const Vec& direction) { buckets_[key(p, 0, 0, 0)].push_back({p, direction}); }
-  /// True when a point within the radius of p has a direction d with accept(d).
-  template <typename Accept>
-  bool anyWithin(const Vec& p, const Accept& accept) const {
-    for (int dz = -1; dz <= 1; ++dz) {
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dx = -1; dx <= 1; ++dx) {
-          const auto it = buckets_.find(key(p, dx, dy, dz));
-          if (it == buckets_.end()) continue;
-          for (const auto& [q, d] : it->second) {
-            if ((q - p).squaredNorm() <= radius_ * radius_ && accept(d)) return true;
-          }
-        }
-      }
-    }
-    return false;
-  }
-
- private:
-  std::int64_t key(const Vec& p, int dx, int dy, int dz) const {
-    const Eigen::Vector3d q = ((p - origin_) / radius_).array().floor();
-    const auto part = [](double x, int d) { return (static_cast<std::int64_t>(x) + d) & 0x1FFFFF; };
-    return part(q.x(), dx) | (part(q.y(), dy) << 21) | (part(q.z(), dz) << 42);
-  }
-  Vec origin_;
-  double radius_;
-  std::unordered_map<std::int64_t, std::vector<std::pair<Vec, Vec>>> buckets_;
-};
 
 /// The (unnormalised) normal of face f of m.
 Vec faceNormal(const Mesh& m, Eigen::Index f) {
@@ -192,7 +158,7 @@ std::vector<Eigen::Index> selectPatch(const Mesh& finished, const std::vector<Ei
   for (Eigen::Index v = 0; v < finished.vertices.rows(); ++v) {
     cornerNear[static_cast<std::size_t>(v)] = inSorted(near, cellId(grid, Vec(finished.vertices.row(v).transpose()))) ? 1 : 0;
   }
-  PointBuckets keptNear(grid.box.min(), gap);
+  std::vector<Vec> keptPoints, keptNormals;  // each with its face's normal
   for (const Eigen::Index f : kept) {
     const Vec c = centroid(finished, f);
     if (!cornerNear[static_cast<std::size_t>(finished.faces(f, 0))] && !cornerNear[static_cast<std::size_t>(finished.faces(f, 1))] &&
@@ -200,16 +166,36 @@ std::vector<Eigen::Index> selectPatch(const Mesh& finished, const std::vector<Ei
       continue;
     }
     const Vec n = faceNormal(finished, f);
-    keptNear.add(c, n);
-    for (int k = 0; k < 3; ++k) keptNear.add(Vec(finished.vertices.row(finished.faces(f, k)).transpose()), n);
+    keptPoints.push_back(c);
+    for (int k = 0; k < 3; ++k) keptPoints.emplace_back(finished.vertices.row(finished.faces(f, k)).transpose());
+    keptNormals.insert(keptNormals.end(), 4, n);
   }
   const auto nf = static_cast<std::size_t>(extracted.faces.rows());
   std::vector<char> where(nf, 0);  // 0: beyond the outer zone, 1: in it, 2: in the patch
+  std::vector<Eigen::Index> inOuter;
   for (Eigen::Index f = 0; f < extracted.faces.rows(); ++f) {
-    const Vec c = centroid(extracted, f);
-    if (!inSorted(outer, cellId(grid, c))) continue;
-    const Vec n = faceNormal(extracted, f);
-    where[static_cast<std::size_t>(f)] = keptNear.anyWithin(c, [&](const Vec& m) { return m.dot(n) > 0.0; }) ? 1 : 2;
+    if (inSorted(outer, cellId(grid, centroid(extracted, f)))) inOuter.push_back(f);
+  }
+  if (!inOuter.empty()) {
+    Points queries(static_cast<Eigen::Index>(inOuter.size()), 3);
+    for (std::size_t i = 0; i < inOuter.size(); ++i) {
+      queries.row(static_cast<Eigen::Index>(i)) = centroid(extracted, inOuter[i]).transpose();
+    }
+    NeighborLists hits;
+    hits.offsets.resize(inOuter.size() + 1, 0);  // no kept face near: no hits
+    if (!keptPoints.empty()) {
+      Points kp(static_cast<Eigen::Index>(keptPoints.size()), 3);
+      for (std::size_t i = 0; i < keptPoints.size(); ++i) kp.row(static_cast<Eigen::Index>(i)) = keptPoints[i].transpose();
+      hits = NeighborIndex(kp).radiusSearchUnsorted(queries, gap);
+    }
+    for (std::size_t i = 0; i < inOuter.size(); ++i) {
+      const Vec n = faceNormal(extracted, inOuter[i]);
+      bool held = false;
+      for (auto e = hits.offsets[i]; e < hits.offsets[i + 1] && !held; ++e) {
+        held = keptNormals[static_cast<std::size_t>(hits.indices[static_cast<std::size_t>(e)])].dot(n) > 0.0;
+      }
+      where[static_cast<std::size_t>(inOuter[i])] = held ? 1 : 2;
+    }
   }
   // Holes: pieces of the other faces that stay in the outer zone and touch the patch.
   {
@@ -305,17 +291,19 @@ std::vector<Eigen::Index> selectPatch(const Mesh& finished, const std::vector<Ei
 /// within `reach` of its own moves from `removed` to `kept` (both stay sorted).
 void keepStrips(const Mesh& finished, std::vector<Eigen::Index>& kept, std::vector<Eigen::Index>& removed,
                 const Mesh& extracted, const std::vector<Eigen::Index>& patch, double reach) {
-  PointBuckets patchAt(finished.vertices.rows() > 0 ? Vec(finished.vertices.colwise().minCoeff().transpose())
-                                                    : Vec::Zero(),
-                       reach);
-  for (const Eigen::Index f : patch) patchAt.add(centroid(extracted, f), Vec::Zero());
   std::vector<char> onKept(static_cast<std::size_t>(finished.vertices.rows()), 0);
   for (const Eigen::Index f : kept) {
     for (int k = 0; k < 3; ++k) onKept[static_cast<std::size_t>(finished.faces(f, k))] = 1;
   }
-  std::vector<char> far(removed.size());
-  for (std::size_t i = 0; i < removed.size(); ++i) {
-    far[i] = !patchAt.anyWithin(centroid(finished, removed[i]), [](const Vec&) { return true; });
+  // Far: no patch face's centre within `reach` (an emptiness test in the patch centres' k-d tree).
+  std::vector<char> far(removed.size(), 1);
+  if (!patch.empty() && !removed.empty()) {
+    Points centres(static_cast<Eigen::Index>(patch.size()), 3), queries(static_cast<Eigen::Index>(removed.size()), 3);
+    for (std::size_t i = 0; i < patch.size(); ++i) centres.row(static_cast<Eigen::Index>(i)) = centroid(extracted, patch[i]).transpose();
+    for (std::size_t i = 0; i < removed.size(); ++i) queries.row(static_cast<Eigen::Index>(i)) = centroid(finished, removed[i]).transpose();
+    const NeighborLists any = NeighborIndex(centres).anyOtherWithin(queries, std::vector<Index>(removed.size(), -1),
+                                                                    std::vector<double>(removed.size(), reach));
+    for (std::size_t i = 0; i < removed.size(); ++i) far[i] = any.offsets[i + 1] == any.offsets[i] ? 1 : 0;
   }
   std::vector<char> back(removed.size(), 0);
   bool any = false;
