@@ -218,8 +218,13 @@ std::vector<MeshFinishReport> finishMeshes(const Device& device, const std::vect
 
 /// Extractions of one level set by the neck pass, at most.
 constexpr int kNeckRounds = 2;
-/// Cells around each point beyond the limit refined one level more (a cube of 2r + 1 cells a side).
+/// The neck's cells: those within kNeckRadius of each point beyond the limit (a cube of 2r + 1 cells a
+/// side), which bound the zone replaced and the neckPassMaxCells test; of them, the cells within
+/// kDeepRadius of the points are refined one level more. (Both were 2: the level set lies within the
+/// deviation, under a cell, of the points, and the deeper cells were most of the extraction's tetrahedra;
+/// docs/method.md §7 "Deeper cells near the points only".)
 constexpr int kNeckRadius = 2;
+constexpr int kDeepRadius = 1;
 
 /// The local replacement's zones around the neck pass's cells: the finished mesh's faces within
 /// kSpliceInner + kSpliceGap cells go (the outer zone), and the new extraction's there come, those about a
@@ -394,6 +399,7 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
   // Up to two rounds: the second adds the cells of the points the first left beyond the limit (a neck
   // longer than the first round's cells).
   std::vector<std::array<int, 3>> cells, replaced;  // this round's cells; those the mesh has refined already
+  std::vector<std::array<int, 3>> deep;             // of them, the cells refined one level more
   bool kept = false;
   const MeshTopology first = analyzeTopology(mesh);
   for (int round = 0; round < kNeckRounds; ++round) {
@@ -401,14 +407,15 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
     if (!finish.deviationMeasured || d.aboveLimitAt.empty()) break;
     // The cells of the points beyond half the limit (the neck's extent, so that one round usually covers
     // it) or, when those span too many cells, of the points beyond the limit, with the cells within
-    // kNeckRadius of them.
-    const auto cellsAround = [&](const std::vector<Eigen::Vector3d>& points) {
-      std::vector<std::array<int, 3>> out = cells;
+    // kNeckRadius of them (kDeepRadius: the deeper ones), added to the earlier rounds'.
+    const auto cellsAround = [&](const std::vector<Eigen::Vector3d>& points, int radius,
+                                 const std::vector<std::array<int, 3>>& base) {
+      std::vector<std::array<int, 3>> out = base;
       for (const Eigen::Vector3d& p : points) {
         const std::array<int, 3> c = detail::cellOf(grid, p);
-        for (int dz = -kNeckRadius; dz <= kNeckRadius; ++dz) {
-          for (int dy = -kNeckRadius; dy <= kNeckRadius; ++dy) {
-            for (int dx = -kNeckRadius; dx <= kNeckRadius; ++dx) {
+        for (int dz = -radius; dz <= radius; ++dz) {
+          for (int dy = -radius; dy <= radius; ++dy) {
+            for (int dx = -radius; dx <= radius; ++dx) {
               const std::array<int, 3> n = {c[0] + dx, c[1] + dy, c[2] + dz};
               if (n[0] >= 0 && n[1] >= 0 && n[2] >= 0 && n[0] < grid.cells(0) && n[1] < grid.cells(1) &&
                   n[2] < grid.cells(2)) {
@@ -422,8 +429,10 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
       out.erase(std::unique(out.begin(), out.end()), out.end());
       return out;
     };
-    std::vector<std::array<int, 3>> wider = cellsAround(d.nearLimitAt);
-    cells = wider.size() <= surface.neckPassMaxCells ? std::move(wider) : cellsAround(d.aboveLimitAt);
+    std::vector<std::array<int, 3>> wider = cellsAround(d.nearLimitAt, kNeckRadius, cells);
+    const bool nearOnes = wider.size() <= surface.neckPassMaxCells;
+    cells = nearOnes ? std::move(wider) : cellsAround(d.aboveLimitAt, kNeckRadius, cells);
+    deep = cellsAround(nearOnes ? d.nearLimitAt : d.aboveLimitAt, kDeepRadius, deep);
     if (cells.size() > surface.neckPassMaxCells) {
       std::ostringstream line;
       line << name << ": neck pass " << round + 1 << " not run: the points beyond the limit span " << cells.size()
@@ -437,21 +446,24 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
       break;
     }
     PolygonizeOptions po = surfacePolygonizeOptions(field, surface);
-    po.refineDeeperCells = cells;
+    po.refineDeeperCells = deep;
     // First the local replacement: the level set extracted in boxes around the cells only, its faces within
     // the zone around them finished on their own and spliced into the mesh.
     if (surface.localNeckPass && surface.finish.clean && surface.finish.project &&
         surface.finish.simplify.maxTriangles == 0 && !(surface.finish.simplify.maxError > 0.0)) {
-      // The zone: the cells new in this round (the earlier rounds' are already in the mesh).
-      std::vector<std::array<int, 3>> zone;
-      std::set_difference(cells.begin(), cells.end(), replaced.begin(), replaced.end(), std::back_inserter(zone));
+      // The zone: every round's cells, the earlier rounds' patch replaced again with the new one, so that
+      // the neck is extracted in one piece (the new cells' zone alone left the bunny twin's offset 0.187%
+      // off where its patch met the first round's, and the whole level set was extracted again); a round
+      // with no new cells has nothing to add.
+      std::vector<std::array<int, 3>> added;
+      std::set_difference(cells.begin(), cells.end(), replaced.begin(), replaced.end(), std::back_inserter(added));
       std::string refused = "no cells beyond the earlier rounds'";
-      if (!zone.empty() && localNeckPass(evaluator, field, grid, iso, surface, minComponent, cells, zone, first,
+      if (!added.empty() && localNeckPass(evaluator, field, grid, iso, surface, minComponent, deep, cells, first,
                                          round + 1 == kNeckRounds, po, mesh, finish, r, refused,
                                          name + ": neck pass " + std::to_string(round + 1), progress)) {
         kept = true;
         replaced = cells;
-        r.cells = cells.size();
+        r.cells = deep.size();
         r.local = true;
         r.localRefused.clear();
         continue;
@@ -474,14 +486,14 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
     const bool better = again.reports[0].deviationMeasured && now < was &&
                         ((after.watertight() && after.manifold()) || !(first.watertight() && first.manifold()));
     std::ostringstream line;
-    line << std::setprecision(4) << name << ": neck pass " << round + 1 << ", " << cells.size()
+    line << std::setprecision(4) << name << ": neck pass " << round + 1 << ", " << deep.size()
          << " cells refined one level more: deviation " << 100.0 * was << "% -> " << 100.0 * now << "% of the largest side, "
          << mesh.faces.rows() << " -> " << again.meshes[0].faces.rows() << " triangles, " << (better ? "kept" : "not kept");
     progress.log(line.str());
     if (!better) break;
     kept = true;
     replaced = cells;
-    r.cells = cells.size();
+    r.cells = deep.size();
     mesh = std::move(again.meshes[0]);
     finish = again.reports[0];
   }
