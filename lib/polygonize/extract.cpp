@@ -579,15 +579,22 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
       // The previous round's region when its seeds are the same (its cells' nodes have not changed).
       rebuild[q] = cache == nullptr || cache->built[q] == 0 || cache->seeds[q] != seeds[q] ? 1 : 0;
     }
-    // The level sets' regions at once (each its own; the refinement of one is single-threaded).
+    // The level sets' regions at once (each its own); one with more than twice the seeds of all the others
+    // together is refined in two slabs on two threads (fandisk_50k_noise0.5pct: the zero level's 4,491
+    // seeds against the offset's 246 kept one core busy for 1.4 s while the other idled).
     const auto levelCount = static_cast<int>(isoValues.size());
+    std::size_t allSeeds = 0;
+    for (std::size_t q = 0; q < isoValues.size(); ++q) allSeeds += rebuild[q] ? seeds[q].size() : 0;
+    const auto slabsOf = [&](std::size_t q) {
+      return nt > 1 && 2 * (allSeeds - seeds[q].size()) < seeds[q].size() ? 2 : 1;
+    };
 #pragma omp parallel for schedule(dynamic, 1) num_threads(std::min(nt, levelCount))
     for (int qi = 0; qi < levelCount; ++qi) {
       const auto q = static_cast<std::size_t>(qi);
       if (!rebuild[q]) continue;
       try {
         regions[q] = refineCells(grid.cells, seeds[q], options.refineLevels, options.refineDilation, options.maxRefinedCells,
-                                 options.refineDeeperCells);
+                                 options.refineDeeperCells, slabsOf(q));
       } catch (...) {
 #pragma omp critical(duplexfit_extract_error)
         if (!error) error = std::current_exception();

@@ -52,10 +52,12 @@ int maxRefineLevels(const Eigen::Vector3i& cells);
 /// to the grid) levels − 1 times, and closes the refinement so that the tetrahedral mesh is
 /// conforming. Deterministic. With more than maxCells seed and ring cells, refines nothing (skipped).
 /// deepSeeds (may be empty) are refined levels + 1 times and their neighbours within `dilation` levels times;
-/// the region's factor is then 2^(levels + 1).
+/// the region's factor is then 2^(levels + 1). With slabs = 2 (and enough seeds) the layers below and above
+/// where the seeds' work halves are refined on two threads, each from the seeds near it, and joined: the
+/// same region.
 RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::array<int, 3>>& seeds,
                           int levels, int dilation, std::int64_t maxCells,
-                          const std::vector<std::array<int, 3>>& deepSeeds = {});
+                          const std::vector<std::array<int, 3>>& deepSeeds = {}, int slabs = 1);
 
 /// The contour of one iso value over the refined region: vertices keyed like the grid extraction's
 /// (start node id · 8 + direction bits) when they lie on an unrefined grid edge, otherwise by

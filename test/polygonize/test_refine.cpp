@@ -238,6 +238,48 @@ TEST_SUITE("polygonize") {
     CHECK(capped.skipped);
   }
 
+  TEST_CASE("refineCells: two slabs on two threads give the region of one") {
+    // A shell of seed cells (above the two-slab threshold of 2,048), a few of them deeper, split where the
+    // seeds' work halves: the same cells, tetrahedra (corners, tags, depths) and counts as in one piece.
+    const Eigen::Vector3i cells(34, 32, 30);
+    std::vector<std::array<int, 3>> seeds, deep;
+    for (int k = 0; k < cells(2); ++k) {
+      for (int j = 0; j < cells(1); ++j) {
+        for (int i = 0; i < cells(0); ++i) {
+          const double r = std::sqrt((i - 16.5) * (i - 16.5) + (j - 15.7) * (j - 15.7) + (k - 14.2) * (k - 14.2));
+          if (std::abs(r - 12.0) < 0.75) seeds.push_back({i, j, k});
+          if (std::abs(r - 12.0) < 0.75 && i == 16) deep.push_back({i, j, k});
+        }
+      }
+    }
+    REQUIRE(seeds.size() >= 2048);
+    for (const bool deeper : {false, true}) {
+      CAPTURE(deeper);
+      const std::vector<std::array<int, 3>>& d = deeper ? deep : std::vector<std::array<int, 3>>{};
+      const RefinedRegion one = refineCells(cells, seeds, 1, 1, 1 << 20, d, 1);
+      const RefinedRegion two = refineCells(cells, seeds, 1, 1, 1 << 20, d, 2);
+      CHECK(two.levels == one.levels);
+      CHECK(two.factor == one.factor);
+      CHECK(two.seeds == one.seeds);
+      CHECK(two.cells == one.cells);
+      CHECK(two.offsets == one.offsets);
+      REQUIRE(two.tets.size() == one.tets.size());
+      std::size_t differ = 0;
+      for (std::size_t t = 0; t < one.tets.size(); ++t) {
+        differ += one.tets[t].x == two.tets[t].x && one.tets[t].tag == two.tets[t].tag &&
+                          one.tets[t].depth == two.tets[t].depth
+                      ? 0
+                      : 1;
+      }
+      CHECK(differ == 0);
+      // The seed cap holds for the two slabs together.
+      const RefinedRegion capped = refineCells(cells, seeds, 1, 1, static_cast<std::int64_t>(one.seeds) - 1, d, 2);
+      CHECK(capped.skipped);
+      CHECK(capped.empty());
+      CHECK(capped.seeds == one.seeds);
+    }
+  }
+
   TEST_CASE("polygonize: refined cells keep the meshes closed, and adaptive equals full sampling") {
     GridSpec g;
     g.box = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d::Constant(1.0));
