@@ -505,13 +505,13 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
   return kept;
 }
 
-/// The interrupter of one mesh's neck pass among several at once: its lines are kept (and logged by the
-/// caller afterwards, in mesh order, so that the log reads as when they ran one after another); the pass on
-/// the calling thread polls the caller's interrupter and raises `stop` for the others, which only read it
-/// (the caller's object need not be thread-safe).
-class NeckPassInterrupter : public Interrupter {
+/// The interrupter of one mesh's task among several at once (finishMeshesWithNeckPass): its lines are kept
+/// (and logged by the caller afterwards, in mesh order, so that the log reads as when they ran one after
+/// another); the task on the calling thread polls the caller's interrupter and raises `stop` for the others,
+/// which only read it (the caller's object need not be thread-safe).
+class MeshTaskInterrupter : public Interrupter {
  public:
-  NeckPassInterrupter(Interrupter* outer, std::atomic<bool>& stop) : outer_(outer), stop_(stop) {}
+  MeshTaskInterrupter(Interrupter* outer, std::atomic<bool>& stop) : outer_(outer), stop_(stop) {}
   bool wasInterrupted(int percent) override {
     (void)percent;
     if (outer_ != nullptr && outer_->wasInterrupted(-1)) stop_.store(true);
@@ -525,40 +525,52 @@ class NeckPassInterrupter : public Interrupter {
   std::atomic<bool>& stop_;
 };
 
-/// neckPass on every mesh that has points beyond the limit. Two or more such meshes are passed at once, each
-/// on a thread of its own (up to MeshFinishOptions::concurrentMeshes, as finishSurfaces does): a pass keeps
-/// about 1.3 cores busy on its own (bunny_35k_noise0.5pct: 6.5 s of CPU in 5.1 s for its two meshes one after
-/// the other), the evaluator is shared, and each mesh's result is the same as alone.
-void neckPasses(const FieldEvaluator& evaluator, const ImplicitField& field, const GridSpec& grid,
-                const std::vector<double>& isos, const SurfaceOptions& surface, const SelfCheckOptions& selfCheck,
-                std::vector<Mesh>& meshes, std::vector<MeshFinishReport>& finished, const Progress& progress) {
-  std::vector<std::size_t> todo;
-  for (std::size_t i = 0; i < meshes.size(); ++i) {
-    if (wantsNeckPass(surface, meshes[i], finished[i])) todo.push_back(i);
-  }
+/// finishSurfaces and then neckPass on every mesh of a duplex fit, each mesh on a thread of its own (up to
+/// MeshFinishOptions::concurrentMeshes, as finishSurfaces does), so that a mesh's neck pass starts when its
+/// own finishing ends, not when every mesh's has, and two neck passes run at once (a pass keeps about 1.3
+/// cores busy: bunny_35k_noise0.5pct, 6.5 s of CPU in 5.1 s for its two meshes one after the other). The
+/// evaluator is shared; each mesh's result is the same as alone, and each mesh's lines are logged together.
+std::vector<MeshFinishReport> finishMeshesWithNeckPass(const FieldEvaluator& evaluator, const ImplicitField& field,
+                                                       const GridSpec& grid, const std::vector<double>& isos,
+                                                       const SurfaceOptions& surface,
+                                                       const SelfCheckOptions& selfCheck, std::vector<Mesh>& meshes,
+                                                       const Progress& progress) {
+  const std::size_t n = meshes.size();
+  std::vector<MeshFinishReport> finished(n);
+  const double cell = grid.cellSize().maxCoeff();
+  MeshFinishOptions one = surface.finish;
+  one.concurrentMeshes = 1;
+  const auto task = [&](std::size_t i, const Progress& p) {
+    std::vector<Mesh> single;
+    single.push_back(std::move(meshes[i]));
+    FinishResult r = finishSurfaces(evaluator, field, std::move(single), {isos[i]}, cell, one, p.interrupter());
+    meshes[i] = std::move(r.meshes[0]);
+    finished[i] = r.reports[0];
+    const std::string name = surfaceName(static_cast<int>(i));
+    logFinish(name, finished[i], p);
+    neckPass(evaluator, field, grid, isos[i], surface, dropFraction(selfCheck, i), meshes[i], finished[i], name, p);
+  };
   std::size_t workers = surface.finish.concurrentMeshes;
   if (workers == 0) workers = std::clamp<std::size_t>(std::thread::hardware_concurrency(), 1, 4);
-  workers = std::min(workers, todo.size());
-  const auto passOne = [&](std::size_t i, const Progress& p) {
-    neckPass(evaluator, field, grid, isos[i], surface, dropFraction(selfCheck, i), meshes[i], finished[i],
-             surfaceName(static_cast<int>(i)), p);
-  };
+  workers = std::min(workers, n);
+  progress.start("finish");
   if (workers <= 1) {
-    for (const std::size_t i : todo) passOne(i, progress);
-    return;
+    for (std::size_t i = 0; i < n; ++i) task(i, progress);
+    progress.end();
+    return finished;
   }
   std::atomic<bool> stop{false};
   std::atomic<std::size_t> next{0};
-  std::vector<std::vector<std::string>> lines(todo.size());
-  std::vector<std::exception_ptr> errors(todo.size());
-  // The meshes are taken in order by the workers; the calling thread's passes poll the caller's interrupter.
+  std::vector<std::vector<std::string>> lines(n);
+  std::vector<std::exception_ptr> errors(n);
+  // The meshes are taken in order by the workers; the calling thread's tasks poll the caller's interrupter.
   const auto work = [&](bool polls) {
     for (;;) {
       const std::size_t k = next.fetch_add(1);
-      if (k >= todo.size() || stop.load()) return;
-      NeckPassInterrupter own(polls ? progress.interrupter() : nullptr, stop);
+      if (k >= n || stop.load()) return;
+      MeshTaskInterrupter own(polls ? progress.interrupter() : nullptr, stop);
       try {
-        passOne(todo[k], Progress(&own));
+        task(k, Progress(&own));
       } catch (...) {
         errors[k] = std::current_exception();
         stop.store(true);
@@ -566,13 +578,12 @@ void neckPasses(const FieldEvaluator& evaluator, const ImplicitField& field, con
       lines[k] = std::move(own.lines);
     }
   };
-  progress.start("neck pass");
   {
     std::vector<std::thread> helpers;
     try {
       for (std::size_t w = 1; w < workers; ++w) helpers.emplace_back(work, false);
     } catch (const std::system_error&) {
-      // no thread to spare: the remaining meshes are passed here
+      // no thread to spare: the remaining meshes are taken here
     }
     work(true);
     for (std::thread& h : helpers) h.join();
@@ -580,7 +591,7 @@ void neckPasses(const FieldEvaluator& evaluator, const ImplicitField& field, con
   for (const std::vector<std::string>& l : lines) {
     for (const std::string& line : l) progress.log(line);
   }
-  // The first failure in mesh order; a pass stopped only because another failed reports Cancelled.
+  // The first failure in mesh order; a task stopped only because another failed reports Cancelled.
   std::exception_ptr cancelled;
   for (const std::exception_ptr& e : errors) {
     if (!e) continue;
@@ -594,6 +605,7 @@ void neckPasses(const FieldEvaluator& evaluator, const ImplicitField& field, con
   }
   if (cancelled) std::rethrow_exception(cancelled);
   progress.end();
+  return finished;
 }
 
 /// After the fit: the surfaces, the self-check against `checkPoints`, clean-up and topology, the shell.
@@ -658,14 +670,13 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
 
   // Cleaning, simplification when asked, and every mesh's deviation from its level set.
   t = Clock::now();
+  // The neck pass too in duplex mode (one field, one grid), each mesh's right after its finishing.
   std::vector<MeshFinishReport> finished =
-      finishMeshes(device, result.fields, evaluator.get(), meshes, isos, options.separate,
-                   first.grid.cellSize().maxCoeff(), options.surface.finish, precision, progress);
-  // The neck pass (duplex mode: one field, one grid).
-  if (!options.separate && evaluator) {
-    neckPasses(*evaluator, result.fields[0], report.grid, isos, surface, options.selfCheck, meshes, finished,
-               progress);
-  }
+      !options.separate && evaluator
+          ? finishMeshesWithNeckPass(*evaluator, result.fields[0], report.grid, isos, surface, options.selfCheck,
+                                     meshes, progress)
+          : finishMeshes(device, result.fields, evaluator.get(), meshes, isos, options.separate,
+                         first.grid.cellSize().maxCoeff(), options.surface.finish, precision, progress);
   report.secondsFinish = secondsSince(t);
 
   // Every fit checks its finished meshes: zero-level components without input points and offset components
