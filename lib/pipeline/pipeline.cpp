@@ -22,6 +22,7 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/measure.hpp"
 #include "duplexfit/timer.hpp"
+#include "parallel/workers.hpp"
 #include "surfaces/splice.hpp"
 
 namespace duplexfit {
@@ -550,9 +551,7 @@ std::vector<MeshFinishReport> finishMeshesWithNeckPass(const FieldEvaluator& eva
     logFinish(name, finished[i], p);
     neckPass(evaluator, field, grid, isos[i], surface, dropFraction(selfCheck, i), meshes[i], finished[i], name, p);
   };
-  std::size_t workers = surface.finish.concurrentMeshes;
-  if (workers == 0) workers = std::clamp<std::size_t>(std::thread::hardware_concurrency(), 1, 4);
-  workers = std::min(workers, n);
+  const std::size_t workers = detail::workersFor(surface.finish.concurrentMeshes, n);
   progress.start("finish");
   if (workers <= 1) {
     for (std::size_t i = 0; i < n; ++i) task(i, progress);
@@ -578,16 +577,7 @@ std::vector<MeshFinishReport> finishMeshesWithNeckPass(const FieldEvaluator& eva
       lines[k] = std::move(own.lines);
     }
   };
-  {
-    std::vector<std::thread> helpers;
-    try {
-      for (std::size_t w = 1; w < workers; ++w) helpers.emplace_back(work, false);
-    } catch (const std::system_error&) {
-      // no thread to spare: the remaining meshes are taken here
-    }
-    work(true);
-    for (std::thread& h : helpers) h.join();
-  }
+  detail::runOnWorkers(workers, work);
   for (const std::vector<std::string>& l : lines) {
     for (const std::string& line : l) progress.log(line);
   }

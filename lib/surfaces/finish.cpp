@@ -7,14 +7,13 @@
 #include <cstdint>
 #include <exception>
 #include <string>
-#include <system_error>
-#include <thread>
 #include <vector>
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/measure.hpp"
 #include "duplexfit/mesh_finish.hpp"
 #include "newton.hpp"
+#include "parallel/workers.hpp"
 #include "splice.hpp"
 
 namespace duplexfit {
@@ -402,9 +401,7 @@ FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField
     out.meshes[i] = std::move(mesh);
     out.reports[i] = rep;
   };
-  std::size_t workers = options.concurrentMeshes;
-  if (workers == 0) workers = std::clamp<std::size_t>(std::thread::hardware_concurrency(), 1, 4);
-  workers = std::min(workers, n);
+  const std::size_t workers = detail::workersFor(options.concurrentMeshes, n);
   // The meshes are taken in order by the workers; only this thread polls the interrupter (the caller's
   // object need not be thread-safe), before it takes each of its meshes.
   std::atomic<std::size_t> next{0};
@@ -428,16 +425,7 @@ FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField
       }
     }
   };
-  {
-    std::vector<std::thread> helpers;
-    try {
-      for (std::size_t w = 1; w < workers; ++w) helpers.emplace_back(work, false);
-    } catch (const std::system_error&) {
-      // no thread to spare: the remaining meshes are finished here
-    }
-    work(true);
-    for (std::thread& h : helpers) h.join();
-  }
+  detail::runOnWorkers(workers, work);
   for (const std::exception_ptr& e : errors) {
     if (e) std::rethrow_exception(e);
   }
