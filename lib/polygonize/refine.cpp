@@ -10,6 +10,7 @@
 #include "refine.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <deque>
@@ -17,13 +18,12 @@
 #include <limits>
 #include <map>
 #include <stdexcept>
-#include <system_error>
-#include <thread>
 
 #include <omp.h>
 
 #include "duplexfit/error.hpp"
 #include "duplexfit/timer.hpp"
+#include "parallel/workers.hpp"
 #include "sampling.hpp"
 
 namespace duplexfit::detail {
@@ -232,6 +232,36 @@ int maxRefineLevels(const Eigen::Vector3i& cells) {
 
 namespace {
 
+/// Each cell's depth by id: the deepest asked of it by a seed (`fineDepth`, a deep seed `deepDepth`) or a
+/// seed's ring within `dilation` (three bisections less; a ring cell that is also a seed is a seed).
+using DepthMap = std::map<std::int64_t, std::pair<std::array<int, 3>, int>>;
+DepthMap wantedDepths(const Eigen::Vector3i& cells, const std::vector<std::array<int, 3>>& seeds,
+                      const std::vector<std::array<int, 3>>& deepSeeds, int fineDepth, int deepDepth, int dilation) {
+  DepthMap depthOf;
+  const auto inGrid = [&cells](const std::array<int, 3>& c) {
+    return c[0] >= 0 && c[1] >= 0 && c[2] >= 0 && c[0] < cells(0) && c[1] < cells(1) && c[2] < cells(2);
+  };
+  const auto want = [&](const std::array<int, 3>& c, int depth) {
+    if (!inGrid(c)) return;
+    const std::int64_t id = c[0] + std::int64_t{cells(0)} * (c[1] + std::int64_t{cells(1)} * c[2]);
+    auto [it, inserted] = depthOf.emplace(id, std::make_pair(c, depth));
+    if (!inserted) it->second.second = std::max(it->second.second, depth);
+  };
+  for (const auto* list : {&seeds, &deepSeeds}) {
+    const int depth = list == &seeds ? fineDepth : deepDepth;
+    for (const auto& s : *list) {
+      if (!inGrid(s)) continue;
+      want(s, depth);
+      for (int dz = -dilation; dz <= dilation; ++dz) {
+        for (int dy = -dilation; dy <= dilation; ++dy) {
+          for (int dx = -dilation; dx <= dilation; ++dx) want({s[0] + dx, s[1] + dy, s[2] + dz}, depth - 3);
+        }
+      }
+    }
+  }
+  return depthOf;
+}
+
 /// refineCells on the cells of layers [zBegin, zEnd) only: the seeds given refine as there, the region
 /// returned holds the range's cells (and `seeds` counts the range's seed and ring cells); `anyDeep`: the
 /// whole region has deep seeds (its factor), `checkMax`: the maxCells test (the caller's otherwise).
@@ -357,26 +387,7 @@ RefinedRegion refineRange(const Eigen::Vector3i& cells, const std::vector<std::a
       while (tets[t].depth < depth) split(tets, t, own);
     }
   };
-  // Each cell's depth: the deepest asked of it by a seed or a seed's ring (a ring cell that is also a seed
-  // is a seed).
-  std::map<std::int64_t, std::pair<std::array<int, 3>, int>> depthOf;
-  const auto want = [&](const std::array<int, 3>& c, int depth) {
-    if (!inGrid(c)) return;
-    auto [it, inserted] = depthOf.emplace(id(c), std::make_pair(c, depth));
-    if (!inserted) it->second.second = std::max(it->second.second, depth);
-  };
-  for (const auto* list : {&seeds, &deepSeeds}) {
-    const int depth = list == &seeds ? fineDepth : 3 * deepest;
-    for (const auto& s : *list) {
-      if (!inGrid(s)) continue;
-      want(s, depth);
-      for (int dz = -dilation; dz <= dilation; ++dz) {
-        for (int dy = -dilation; dy <= dilation; ++dy) {
-          for (int dx = -dilation; dx <= dilation; ++dx) want({s[0] + dx, s[1] + dy, s[2] + dz}, depth - 3);
-        }
-      }
-    }
-  }
+  const DepthMap depthOf = wantedDepths(cells, seeds, deepSeeds, fineDepth, 3 * deepest, dilation);
   r.seeds = 0;
   for (const auto& entry : depthOf) {
     const int z = entry.second.first[2];
@@ -478,51 +489,29 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
     throw InvalidArgument("polygonize: refinement by " + std::to_string(deepest) +
                           " levels does not fit this grid's lattice");
   }
-  {
-    std::vector<std::int64_t> wanted;
-    for (const auto* list : {&seeds, &deepSeeds}) {
-      for (const auto& c : *list) {
-        for (int dz = -dilation; dz <= dilation; ++dz) {
-          for (int dy = -dilation; dy <= dilation; ++dy) {
-            for (int dx = -dilation; dx <= dilation; ++dx) {
-              const int i = c[0] + dx, j = c[1] + dy, k = c[2] + dz;
-              if (i < 0 || j < 0 || k < 0 || i >= cells(0) || j >= cells(1) || k >= cells(2)) continue;
-              wanted.push_back(i + std::int64_t{cells(0)} * (j + std::int64_t{cells(1)} * k));
-            }
-          }
-        }
-      }
-    }
-    std::sort(wanted.begin(), wanted.end());
-    const auto count = static_cast<std::int64_t>(std::unique(wanted.begin(), wanted.end()) - wanted.begin());
-    if (count > maxCells) {
-      RefinedRegion r;
-      r.levels = deepest;
-      r.factor = std::int32_t{1} << deepest;
-      r.seeds = count;
-      r.skipped = true;
-      return r;
-    }
+  const DepthMap wanted = wantedDepths(cells, seeds, deepSeeds, 3 * levels, 3 * deepest, dilation);
+  if (static_cast<std::int64_t>(wanted.size()) > maxCells) {
+    RefinedRegion r;
+    r.levels = deepest;
+    r.factor = std::int32_t{1} << deepest;
+    r.seeds = static_cast<std::int64_t>(wanted.size());
+    r.skipped = true;
+    return r;
   }
-  // Two slabs of layers, split where the seeds' work (their tetrahedra, 8 times more a level) halves; each
-  // refined on a thread of its own from the seeds within kSlabHalo layers of it, and only its own cells kept.
-  std::vector<std::pair<int, double>> work;
-  const int fine = 3 * levels;
-  for (const auto* list : {&seeds, &deepSeeds}) {
-    const double w = std::ldexp(1.0, list == &seeds ? fine : fine + 3);
-    for (const auto& c : *list) work.emplace_back(c[2], w);
-  }
-  std::sort(work.begin(), work.end());
+  // Two slabs of layers, split where the cells' work (their tetrahedra, twice as many a bisection) halves
+  // (the map is in id order, so in layer order); each refined on a thread of its own from the seeds within
+  // kSlabHalo layers of it, and only its own cells kept.
   double total = 0.0;
-  for (const auto& e : work) total += e.second;
-  int split = work.front().first;
+  for (const auto& entry : wanted) total += std::ldexp(1.0, entry.second.second);
+  const int first = wanted.begin()->second.first[2], last = wanted.rbegin()->second.first[2];
+  int split = first;
   double below = 0.0;
-  for (const auto& e : work) {
+  for (const auto& entry : wanted) {
     if (below >= 0.5 * total) break;
-    below += e.second;
-    split = e.first + 1;
+    below += std::ldexp(1.0, entry.second.second);
+    split = entry.second.first[2] + 1;
   }
-  if (split <= work.front().first || split > work.back().first) {
+  if (split <= first || split > last) {
     return refineRange(cells, seeds, levels, dilation, maxCells, deepSeeds, anyDeep, -all, all, true);
   }
   const auto within = [](const std::vector<std::array<int, 3>>& list, int lo, int hi) {
@@ -535,25 +524,19 @@ RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::a
   const std::array<int, 2> zBegin{-all, split}, zEnd{split, all};
   std::array<RefinedRegion, 2> part;
   std::array<std::exception_ptr, 2> error;
-  const auto run = [&](std::size_t k) {
-    try {
-      const int lo = k == 0 ? -all : split - kSlabHalo, hi = k == 0 ? split + kSlabHalo : all;
-      part[k] = refineRange(cells, within(seeds, lo, hi), levels, dilation, maxCells, within(deepSeeds, lo, hi), anyDeep,
-                            zBegin[k], zEnd[k], false);
-    } catch (...) {
-      error[k] = std::current_exception();
+  std::atomic<std::size_t> next{0};
+  const auto run = [&](bool) {
+    for (std::size_t k; (k = next.fetch_add(1)) < 2;) {
+      try {
+        const int lo = k == 0 ? -all : split - kSlabHalo, hi = k == 0 ? split + kSlabHalo : all;
+        part[k] = refineRange(cells, within(seeds, lo, hi), levels, dilation, maxCells, within(deepSeeds, lo, hi),
+                              anyDeep, zBegin[k], zEnd[k], false);
+      } catch (...) {
+        error[k] = std::current_exception();
+      }
     }
   };
-  {
-    std::thread other;
-    try {
-      other = std::thread(run, std::size_t{1});
-    } catch (const std::system_error&) {
-      run(1);  // no thread to spare: one after the other
-    }
-    run(0);
-    if (other.joinable()) other.join();
-  }
+  runOnWorkers(2, run);
   for (const auto& e : error) {
     if (e) std::rethrow_exception(e);
   }
