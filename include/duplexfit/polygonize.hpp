@@ -96,6 +96,12 @@ struct PolygonizeOptions {
   /// sharp edges such layers are common and the plain contour is close enough; in thin plates it is not.
   double refineTolerance = 0.0;
   int refineDilation = 1;
+  /// With refineLevels ≥ 2 and a tolerance: the deviating cells are refined one level less first, and only
+  /// those whose contour there is still beyond refineTolerance (the centre of a tetrahedron's contour
+  /// polygon) or that still hold a layer one finer lattice point thick are refined refineLevels times, with
+  /// their ring; the others stay one level less, with no ring (PolygonizeStats::shallowCells). false: every
+  /// deviating cell refineLevels times.
+  bool refineAsNeeded = true;
   /// Refined cells requested by the caller (refined like the detected ones).
   std::vector<std::array<int, 3>> refineCells;
   /// Cells refined one level more than refineLevels (at most 3 in all), their neighbours within
@@ -159,6 +165,8 @@ struct PolygonizeStats {
   std::int64_t storageBytes = 0;   ///< memory held by the sampled node values (tiles + lattice)
   std::int64_t thinCells = 0;          ///< crossed cells with a node layer one node thick
   std::int64_t deviatingCells = 0;     ///< of those, the ones beyond refineTolerance (all of them without it)
+  /// of those, the ones refined one level less, with no ring: their contour there is within refineTolerance
+  std::int64_t shallowCells = 0;
   std::int64_t refinedSeeds = 0;       ///< cells refined fully (the thin ones and their neighbours)
   std::int64_t refinedCells = 0;       ///< cells contoured on refined tetrahedra (seeds and closure)
   std::int64_t refinedTetrahedra = 0;  ///< their tetrahedra

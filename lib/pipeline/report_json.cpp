@@ -259,6 +259,7 @@ Json shellJson(const PipelineResult& result, const std::vector<std::string>& mes
 Json refinementJson(const PolygonizeStats& s) {
   return Json{{"thin_cells", s.thinCells},
               {"deviating_cells", s.deviatingCells},
+              {"shallow_cells", s.shallowCells},
               {"seed_cells", s.refinedSeeds},
               {"cells", s.refinedCells},
               {"tetrahedra", s.refinedTetrahedra},

@@ -565,9 +565,11 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
         for (std::size_t q = 0; q < isoValues.size(); ++q) seeds[q].insert(seeds[q].end(), chunk[q].begin(), chunk[q].end());
       }
     }
-    stats.thinCells = stats.deviatingCells = stats.refinedSeeds = stats.refinedCells = stats.refinedTetrahedra = 0;
+    stats.thinCells = stats.deviatingCells = stats.shallowCells = stats.refinedSeeds = stats.refinedCells =
+        stats.refinedTetrahedra = 0;
     stats.refinementSkipped = false;
     std::vector<char> rebuild(isoValues.size(), 0);
+    std::vector<std::size_t> thinSeeds(isoValues.size(), 0);
     for (std::size_t q = 0; q < isoValues.size(); ++q) {
       stats.thinCells += static_cast<std::int64_t>(seeds[q].size());
       if (options.refineTolerance > 0.0 && !seeds[q].empty()) {
@@ -575,6 +577,7 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
                                   options.batchSize, stats, cache != nullptr ? &cache->deviating[q] : nullptr);
       }
       stats.deviatingCells += static_cast<std::int64_t>(seeds[q].size());
+      thinSeeds[q] = seeds[q].size();
       seeds[q].insert(seeds[q].end(), options.refineCells.begin(), options.refineCells.end());
       // The previous round's region when its seeds are the same (its cells' nodes have not changed).
       rebuild[q] = cache == nullptr || cache->built[q] == 0 || cache->seeds[q] != seeds[q] ? 1 : 0;
@@ -588,13 +591,58 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
     const auto slabsOf = [&](std::size_t q) {
       return nt > 1 && 2 * (allSeeds - seeds[q].size()) < seeds[q].size() ? 2 : 1;
     };
+    // Refined as deep as the contour needs: the deviating cells refined one level less first, and only
+    // those whose contour there is still beyond the tolerance refined fully, with their ring (the others stay
+    // one level less, with none); the caller's cells are refined fully.
+    std::vector<std::vector<Cell>> full(isoValues.size()), shallow(isoValues.size());
+    std::vector<std::vector<std::uint64_t>> knownKeys(isoValues.size());
+    std::vector<std::vector<float>> knownValues(isoValues.size());
+    const bool adaptive = options.refineAsNeeded && options.refineLevels >= 2 && options.refineTolerance > 0.0;
+    if (adaptive) {
+      std::vector<RefinedRegion> coarser(isoValues.size());
+      std::vector<std::vector<Cell>> thin(isoValues.size());
+      for (std::size_t q = 0; q < isoValues.size(); ++q) {
+        thin[q].assign(seeds[q].begin(), seeds[q].begin() + static_cast<std::ptrdiff_t>(thinSeeds[q]));
+      }
+#pragma omp parallel for schedule(dynamic, 1) num_threads(std::min(nt, levelCount))
+      for (int qi = 0; qi < levelCount; ++qi) {
+        const auto q = static_cast<std::size_t>(qi);
+        if (!rebuild[q] || thin[q].empty()) continue;
+        try {
+          coarser[q] = refineCells(grid.cells, thin[q], options.refineLevels - 1, 0, options.maxRefinedCells, {}, slabsOf(q));
+        } catch (...) {
+#pragma omp critical(duplexfit_extract_error)
+          if (!error) error = std::current_exception();
+        }
+      }
+      if (error) std::rethrow_exception(error);
+      for (std::size_t q = 0; q < isoValues.size(); ++q) {
+        if (!rebuild[q]) continue;
+        full[q] = thin[q].empty() ? thin[q]
+                                  : refinedDeviatingCells(coarser[q], thin[q], store, grid, isoValues[q], sampler,
+                                                          options.refineTolerance, options.batchSize, stats,
+                                                          std::int32_t{1} << deepest, knownKeys[q], knownValues[q]);
+        coarser[q] = RefinedRegion();
+        std::vector<Cell> sortedFull = full[q];
+        std::sort(sortedFull.begin(), sortedFull.end());
+        for (const Cell& c : thin[q]) {
+          if (!std::binary_search(sortedFull.begin(), sortedFull.end(), c)) shallow[q].push_back(c);
+        }
+        stats.shallowCells += static_cast<std::int64_t>(shallow[q].size());
+        full[q].insert(full[q].end(), options.refineCells.begin(), options.refineCells.end());
+      }
+    } else {
+      full = seeds;
+    }
 #pragma omp parallel for schedule(dynamic, 1) num_threads(std::min(nt, levelCount))
     for (int qi = 0; qi < levelCount; ++qi) {
       const auto q = static_cast<std::size_t>(qi);
       if (!rebuild[q]) continue;
       try {
-        regions[q] = refineCells(grid.cells, seeds[q], options.refineLevels, options.refineDilation, options.maxRefinedCells,
-                                 options.refineDeeperCells, slabsOf(q));
+        regions[q] = refineCells(grid.cells, full[q], options.refineLevels, options.refineDilation, options.maxRefinedCells,
+                                 options.refineDeeperCells, slabsOf(q), shallow[q]);
+        regions[q].knownKeys = std::move(knownKeys[q]);
+        regions[q].knownValues = std::move(knownValues[q]);
       } catch (...) {
 #pragma omp critical(duplexfit_extract_error)
         if (!error) error = std::current_exception();

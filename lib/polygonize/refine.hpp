@@ -35,6 +35,10 @@ struct RefinedRegion {
   std::vector<std::size_t> offsets;    ///< tets of cells[c] are tets[offsets[c] .. offsets[c + 1])
   std::vector<FineTet> tets;
   std::int64_t seeds = 0;              ///< seed and ring cells
+  /// Field values already evaluated at some of its lattice points (packed keys on this region's lattice),
+  /// which extractRefined takes instead of evaluating them again (refinedDeviatingCells fills them).
+  std::vector<std::uint64_t> knownKeys;
+  std::vector<float> knownValues;
   bool skipped = false;                ///< more of them than refineCells' maxCells
   bool empty() const noexcept { return cells.empty(); }
   bool contains(std::int64_t cellId) const;
@@ -55,9 +59,12 @@ int maxRefineLevels(const Eigen::Vector3i& cells);
 /// the region's factor is then 2^(levels + 1). With slabs = 2 (and enough seeds) the layers below and above
 /// where the seeds' work halves are refined on two threads, each from the seeds near it, and joined: the
 /// same region.
+/// shallowSeeds (may be empty) are refined levels − 1 times, with no ring (the cells whose contour one level
+/// less already follows the field: refinedDeviatingCells).
 RefinedRegion refineCells(const Eigen::Vector3i& cells, const std::vector<std::array<int, 3>>& seeds,
                           int levels, int dilation, std::int64_t maxCells,
-                          const std::vector<std::array<int, 3>>& deepSeeds = {}, int slabs = 1);
+                          const std::vector<std::array<int, 3>>& deepSeeds = {}, int slabs = 1,
+                          const std::vector<std::array<int, 3>>& shallowSeeds = {});
 
 /// The contour of one iso value over the refined region: vertices keyed like the grid extraction's
 /// (start node id · 8 + direction bits) when they lie on an unrefined grid edge, otherwise by
@@ -75,6 +82,21 @@ struct PatchMesh {
 /// the points in the error for a sampler that returns the wrong count.
 void evaluateInBatches(const FieldSampler& sampler, const std::vector<Eigen::Vector3d>& points, std::int64_t batchSize,
                        PolygonizeStats& stats, const char* what, const std::function<void(std::size_t, double)>& use);
+
+/// Of `candidates` (cells of `region`, a region refined one level less than wanted), those whose contour of
+/// iso on the region's tetrahedra is farther than tol from the level set somewhere: the centre of a
+/// tetrahedron's contour polygon (the mean of its edge crossings) has |f − iso| > tol (or f is not finite),
+/// or the cell's lattice still has a layer one lattice point thick (a point whose two axis neighbours in the
+/// cell lie on the other side of iso, whatever tol); a candidate outside the region counts as such. The values evaluated at the region's lattice points are
+/// appended to knownKeys / knownValues, keyed on a lattice of factor toFactor (a multiple of the
+/// region's).
+std::vector<std::array<int, 3>> refinedDeviatingCells(const RefinedRegion& region,
+                                                      const std::vector<std::array<int, 3>>& candidates,
+                                                      const NodeStore& store, const GridSpec& grid, double iso,
+                                                      const FieldSampler& sampler, double tol,
+                                                      std::int64_t batchSize, PolygonizeStats& stats,
+                                                      std::int32_t toFactor, std::vector<std::uint64_t>& knownKeys,
+                                                      std::vector<float>& knownValues);
 
 /// Contours the refined region for each iso value. Node values come from the store where sampled;
 /// the other lattice points are evaluated with sampler (in batches of batchSize; counted in

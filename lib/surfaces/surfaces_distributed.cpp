@@ -151,9 +151,9 @@ SurfaceResult extractSurfacesDistributed(Communicator& comm, const FieldEvaluato
     comm.allreduce(v.data(), v.size(), op);
     for (std::size_t i = 0; i < v.size(); ++i) *fields[i] = v[i];
   };
-  reduce(std::array<std::int64_t*, 9>{&s.evaluatedNodes, &s.samplerCalls, &s.coarseBlocks, &s.refinedBlocks,
-                                      &s.continuedCells, &s.thinCells, &s.refinedCells, &s.refinedTetrahedra,
-                                      &s.refinedEvaluations},
+  reduce(std::array<std::int64_t*, 11>{&s.evaluatedNodes, &s.samplerCalls, &s.coarseBlocks, &s.refinedBlocks,
+                                       &s.continuedCells, &s.thinCells, &s.deviatingCells, &s.shallowCells,
+                                       &s.refinedCells, &s.refinedTetrahedra, &s.refinedEvaluations},
          ReduceOp::Sum);
   reduce(std::array<double*, 5>{&s.samplingSeconds, &s.samplerSeconds, &s.extractionSeconds, &s.refinedSeconds,
                                 &s.totalSeconds},

@@ -18,6 +18,7 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/polygonize.hpp"
 #include "polygonize/mesh_checks.hpp"
+#include "polygonize/node_store.hpp"
 #include "polygonize/refine.hpp"
 
 namespace {
@@ -352,5 +353,76 @@ TEST_SUITE("polygonize") {
     CHECK(c.meshes[0].faces.rows() < b.meshes[0].faces.rows());
     CHECK(topology(c.meshes[0]).closedManifold());
     CHECK(centreDeviation(c.meshes[0], f) < 0.5 * before);
+    // Refined as needed (the default): the deviating cells whose contour one level less is already within
+    // the tolerance stay there, with no ring; against every deviating cell refined fully, fewer tetrahedra for
+    // the same closed plate, and every face centre still within the tolerance of the sharper run's worst.
+    PolygonizeOptions everyFully = tolerant;
+    everyFully.refineAsNeeded = false;
+    const PolygonizeResult d = polygonize(samplerOf(f), g, {0.0}, everyFully);
+    INFO("shallow " << c.stats.shallowCells << " of " << c.stats.deviatingCells << ", tetrahedra " << c.stats.refinedTetrahedra
+                    << " against " << d.stats.refinedTetrahedra);
+    CHECK(d.stats.shallowCells == 0);
+    CHECK(d.stats.deviatingCells == c.stats.deviatingCells);
+    CHECK(c.stats.shallowCells > 0);
+    CHECK(c.stats.shallowCells < c.stats.deviatingCells);
+    CHECK(c.stats.refinedTetrahedra < d.stats.refinedTetrahedra);
+    const Topology td = topology(d.meshes[0]), tc = topology(c.meshes[0]);
+    CHECK(tc.components == td.components);
+    CHECK(tc.euler == td.euler);
+    CHECK(centreDeviation(c.meshes[0], f) <= centreDeviation(d.meshes[0], f) + tolerant.refineTolerance);
+  }
+
+  TEST_CASE("refinedDeviatingCells: a plane's contour is exact one level less, a small ball's is not; the values "
+            "evaluated are kept on the finer lattice") {
+    GridSpec g;
+    g.box = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d::Constant(1.0));
+    g.cells = Eigen::Vector3i::Constant(8);
+    const double h = g.cellSize()(0);
+    duplexfit::detail::NodeStore store(g.cells, 4);  // nothing sampled: every lattice point is evaluated
+    const std::vector<std::array<int, 3>> candidates = {{3, 3, 3}, {4, 3, 3}, {3, 4, 4}};
+    const RefinedRegion region = refineCells(g.cells, candidates, 1, 0, 1000);
+    REQUIRE(region.factor == 2);
+    const Field plane = [](const Eigen::Vector3d& x) { return 0.3 * x(0) - 0.5 * x(1) + 0.8 * x(2) + 0.02; };
+    duplexfit::PolygonizeStats stats;
+    std::vector<std::uint64_t> keys;
+    std::vector<float> values;
+    const auto exact = duplexfit::detail::refinedDeviatingCells(region, candidates, store, g, 0.0, samplerOf(plane), 1e-9,
+                                                                 64, stats, 4, keys, values);
+    CHECK(exact.empty());  // linear interpolation of a linear field is exact
+    CHECK(stats.refinedEvaluations > 0);
+    REQUIRE(keys.size() == values.size());
+    REQUIRE(!keys.empty());
+    // Each kept value is the field at its point of the lattice four times finer than the grid.
+    const std::uint64_t mask = (std::uint64_t{1} << 21) - 1;
+    for (std::size_t i = 0; i < keys.size(); ++i) {
+      const Eigen::Vector3d p = g.box.min() + 0.25 * h *
+                                                  Eigen::Vector3d(static_cast<double>(keys[i] & mask),
+                                                                  static_cast<double>((keys[i] >> 21) & mask),
+                                                                  static_cast<double>(keys[i] >> 42));
+      CAPTURE(i);
+      CHECK(static_cast<double>(values[i]) == doctest::Approx(plane(p)).epsilon(1e-6));
+    }
+    // A ball of radius 0.1 inside cell (3, 3, 3) curves there: its contour one level less is off by more than
+    // 1e-4 of the field; the candidates it does not reach have no contour; one outside the region deviates.
+    const Field ball = [](const Eigen::Vector3d& x) { return 0.1 - (x - Eigen::Vector3d(-0.12, -0.13, -0.11)).norm(); };
+    std::vector<std::array<int, 3>> more = candidates;
+    more.push_back({0, 0, 0});
+    keys.clear();
+    values.clear();
+    const auto curved = duplexfit::detail::refinedDeviatingCells(region, more, store, g, 0.0, samplerOf(ball), 1e-4, 64,
+                                                                  stats, 4, keys, values);
+    CHECK(curved == std::vector<std::array<int, 3>>{{3, 3, 3}, {0, 0, 0}});
+    // A plate 0.4 h thick centred on the middle lattice plane of cell (3, 3, 3) (z = −h/2) is one finer
+    // lattice point thick there: refined further whatever the tolerance; a plate 1.2 h thick centred on the
+    // cell's lower face is not, and its contour in the cell (where f is linear) is exact.
+    const auto slab = [](double centre, double halfThickness) {
+      return Field([=](const Eigen::Vector3d& x) { return halfThickness - std::abs(x(2) - centre); });
+    };
+    const std::vector<std::array<int, 3>> one = {{3, 3, 3}};
+    CHECK(duplexfit::detail::refinedDeviatingCells(region, one, store, g, 0.0, samplerOf(slab(-0.5 * h, 0.2 * h)), 10.0, 64,
+                                                   stats, 4, keys, values) == one);
+    CHECK(duplexfit::detail::refinedDeviatingCells(region, one, store, g, 0.0, samplerOf(slab(-h, 0.6 * h)), 1e-9, 64,
+                                                   stats, 4, keys, values)
+              .empty());
   }
 }
