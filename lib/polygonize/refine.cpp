@@ -15,6 +15,7 @@
 #include <cmath>
 #include <deque>
 #include <exception>
+#include <functional>
 #include <limits>
 #include <map>
 #include <stdexcept>
@@ -722,6 +723,41 @@ void evaluateInBatches(const FieldSampler& sampler, const std::vector<Eigen::Vec
   }
 }
 
+namespace {
+
+/// Enters lattice point p (of a region of factor F) in `values` once: a sampled grid node's value from the
+/// store, otherwise NaN with p appended to `pending` (evaluatePending fills it).
+void takeLatticePoint(const P3& p, std::int32_t F, const NodeStore& store, PointMap<float>& values,
+                      std::vector<P3>& pending) {
+  const std::uint64_t key = pack(p);
+  if (values.contains(key)) return;
+  float v = NodeStore::kMissing;
+  if (p[0] % F == 0 && p[1] % F == 0 && p[2] % F == 0) v = store.value(p[0] / F, p[1] / F, p[2] / F);
+  if (!std::isfinite(v)) pending.push_back(p);
+  values.emplace(key, v);
+}
+
+/// Evaluates the field at the pending lattice points (in order, in batches) into `values`, calling
+/// also(i, value) for each; a non-finite value is an error naming the point.
+void evaluatePending(const std::vector<P3>& pending, const std::array<std::vector<double>, 3>& coords, std::int32_t F,
+                     const FieldSampler& sampler, std::int64_t batchSize, PolygonizeStats& stats,
+                     PointMap<float>& values, const std::function<void(std::size_t, float)>& also) {
+  std::vector<Eigen::Vector3d> at(pending.size());
+  for (std::size_t i = 0; i < pending.size(); ++i) {
+    for (int a = 0; a < 3; ++a) at[i](a) = fineCoordinate(coords, F, a, pending[i][static_cast<std::size_t>(a)]);
+  }
+  evaluateInBatches(sampler, at, batchSize, stats, "refined points", [&](std::size_t i, double v) {
+    if (!std::isfinite(v)) {
+      throw InvalidArgument("polygonize: the field is not finite at refined point (" + std::to_string(at[i](0)) + ", " +
+                            std::to_string(at[i](1)) + ", " + std::to_string(at[i](2)) + ")");
+    }
+    values.assign(pack(pending[i]), static_cast<float>(v));
+    if (also) also(i, static_cast<float>(v));
+  });
+}
+
+}  // namespace
+
 std::vector<std::array<int, 3>> refinedDeviatingCells(const RefinedRegion& region,
                                                       const std::vector<std::array<int, 3>>& candidates,
                                                       const NodeStore& store, const GridSpec& grid, double iso,
@@ -756,31 +792,15 @@ std::vector<std::array<int, 3>> refinedDeviatingCells(const RefinedRegion& regio
   std::vector<P3> pending;
   for (std::size_t c = 0; c < candidates.size(); ++c) {
     for (std::size_t t = spans[c].first; t < spans[c].second; ++t) {
-      for (const P3& p : region.tets[t].x) {
-        const std::uint64_t key = pack(p);
-        if (values.contains(key)) continue;
-        float v = NodeStore::kMissing;
-        if (p[0] % F == 0 && p[1] % F == 0 && p[2] % F == 0) v = store.value(p[0] / F, p[1] / F, p[2] / F);
-        if (!std::isfinite(v)) pending.push_back(p);
-        values.emplace(key, v);
-      }
+      for (const P3& p : region.tets[t].x) takeLatticePoint(p, F, store, values, pending);
     }
-  }
-  std::vector<Eigen::Vector3d> at(pending.size());
-  for (std::size_t i = 0; i < pending.size(); ++i) {
-    for (int a = 0; a < 3; ++a) at[i](a) = fineCoordinate(coords, F, a, pending[i][static_cast<std::size_t>(a)]);
   }
   knownKeys.reserve(knownKeys.size() + pending.size());
   knownValues.reserve(knownValues.size() + pending.size());
-  evaluateInBatches(sampler, at, batchSize, stats, "refined points", [&](std::size_t i, double v) {
-    if (!std::isfinite(v)) {
-      throw InvalidArgument("polygonize: the field is not finite at refined point (" + std::to_string(at[i](0)) + ", " +
-                            std::to_string(at[i](1)) + ", " + std::to_string(at[i](2)) + ")");
-    }
-    values.assign(pack(pending[i]), static_cast<float>(v));
+  evaluatePending(pending, coords, F, sampler, batchSize, stats, values, [&](std::size_t i, float v) {
     const P3& p = pending[i];
     knownKeys.push_back(pack({p[0] * scale, p[1] * scale, p[2] * scale}));
-    knownValues.push_back(static_cast<float>(v));
+    knownValues.push_back(v);
   });
   // A layer one lattice point thick inside the cell (a point whose two axis neighbours in the cell lie on the
   // other side of iso: the sign pattern that made its coarse cell thin, one level finer) is refined further
@@ -923,14 +943,7 @@ std::vector<PatchMesh> extractRefined(const RefinedRegion& region, const NodeSto
   for (std::size_t i = 0; i < region.knownKeys.size(); ++i) values.emplace(region.knownKeys[i], region.knownValues[i]);
   std::vector<P3> pending;
   for (const auto& l : firstUse) {
-    for (const P3& p : l) {
-      const std::uint64_t key = pack(p);
-      if (values.contains(key)) continue;
-      float v = NodeStore::kMissing;
-      if (p[0] % F == 0 && p[1] % F == 0 && p[2] % F == 0) v = store.value(p[0] / F, p[1] / F, p[2] / F);
-      if (!std::isfinite(v)) pending.push_back(p);
-      values.emplace(key, v);
-    }
+    for (const P3& p : l) takeLatticePoint(p, F, store, values, pending);
   }
   firstUse = {};
   // The grid corners of the region's other cells (a slab's halo), for their open neighbours below.
@@ -940,25 +953,11 @@ std::vector<PatchMesh> extractRefined(const RefinedRegion& region, const NodeSto
     if (k >= zBegin && k < zEnd) continue;
     const std::array<int, 3> c = {static_cast<int>(id % nx), static_cast<int>((id / nx) % ny), static_cast<int>(k)};
     for (int corner = 0; corner < 8; ++corner) {
-      const P3 p = {F * (c[0] + (corner & 1)), F * (c[1] + ((corner >> 1) & 1)), F * (c[2] + ((corner >> 2) & 1))};
-      const std::uint64_t key = pack(p);
-      if (values.contains(key)) continue;
-      const float v = store.value(p[0] / F, p[1] / F, p[2] / F);
-      if (!std::isfinite(v)) pending.push_back(p);
-      values.emplace(key, v);
+      takeLatticePoint({F * (c[0] + (corner & 1)), F * (c[1] + ((corner >> 1) & 1)), F * (c[2] + ((corner >> 2) & 1))},
+                       F, store, values, pending);
     }
   }
-  std::vector<Eigen::Vector3d> at(pending.size());
-  for (std::size_t i = 0; i < pending.size(); ++i) {
-    for (int a = 0; a < 3; ++a) at[i](a) = fineCoordinate(coords, F, a, pending[i][static_cast<std::size_t>(a)]);
-  }
-  evaluateInBatches(sampler, at, batchSize, stats, "refined points", [&](std::size_t i, double v) {
-    if (!std::isfinite(v)) {
-      throw InvalidArgument("polygonize: the field is not finite at refined point (" + std::to_string(at[i](0)) + ", " +
-                            std::to_string(at[i](1)) + ", " + std::to_string(at[i](2)) + ")");
-    }
-    values.assign(pack(pending[i]), static_cast<float>(v));
-  });
+  evaluatePending(pending, coords, F, sampler, batchSize, stats, values, {});
 
   double largest = 0.0;
   for (const auto& c : coords) {
