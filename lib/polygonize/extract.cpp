@@ -591,6 +591,21 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
     const auto slabsOf = [&](std::size_t q) {
       return nt > 1 && 2 * (allSeeds - seeds[q].size()) < seeds[q].size() ? 2 : 1;
     };
+    // body(q) for each level set whose region is rebuilt, on up to nt threads; the first error rethrown.
+    const auto onRebuiltLevels = [&](const auto& body) {
+#pragma omp parallel for schedule(dynamic, 1) num_threads(std::min(nt, levelCount))
+      for (int qi = 0; qi < levelCount; ++qi) {
+        const auto q = static_cast<std::size_t>(qi);
+        if (!rebuild[q]) continue;
+        try {
+          body(q);
+        } catch (...) {
+#pragma omp critical(duplexfit_extract_error)
+          if (!error) error = std::current_exception();
+        }
+      }
+      if (error) std::rethrow_exception(error);
+    };
     // Refined as deep as the contour needs: the deviating cells refined one level less first, and only
     // those whose contour there is still beyond the tolerance refined fully, with their ring (the others stay
     // one level less, with none); the caller's cells are refined fully.
@@ -604,18 +619,11 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
       for (std::size_t q = 0; q < isoValues.size(); ++q) {
         thin[q].assign(seeds[q].begin(), seeds[q].begin() + static_cast<std::ptrdiff_t>(thinSeeds[q]));
       }
-#pragma omp parallel for schedule(dynamic, 1) num_threads(std::min(nt, levelCount))
-      for (int qi = 0; qi < levelCount; ++qi) {
-        const auto q = static_cast<std::size_t>(qi);
-        if (!rebuild[q] || thin[q].empty()) continue;
-        try {
+      onRebuiltLevels([&](std::size_t q) {
+        if (!thin[q].empty()) {
           coarser[q] = refineCells(grid.cells, thin[q], options.refineLevels - 1, 0, options.maxRefinedCells, {}, slabsOf(q));
-        } catch (...) {
-#pragma omp critical(duplexfit_extract_error)
-          if (!error) error = std::current_exception();
         }
-      }
-      if (error) std::rethrow_exception(error);
+      });
       for (std::size_t q = 0; q < isoValues.size(); ++q) {
         if (!rebuild[q]) continue;
         full[q] = thin[q].empty() ? thin[q]
@@ -634,21 +642,12 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
     } else {
       full = seeds;
     }
-#pragma omp parallel for schedule(dynamic, 1) num_threads(std::min(nt, levelCount))
-    for (int qi = 0; qi < levelCount; ++qi) {
-      const auto q = static_cast<std::size_t>(qi);
-      if (!rebuild[q]) continue;
-      try {
-        regions[q] = refineCells(grid.cells, full[q], options.refineLevels, options.refineDilation, options.maxRefinedCells,
-                                 options.refineDeeperCells, slabsOf(q), shallow[q]);
-        regions[q].knownKeys = std::move(knownKeys[q]);
-        regions[q].knownValues = std::move(knownValues[q]);
-      } catch (...) {
-#pragma omp critical(duplexfit_extract_error)
-        if (!error) error = std::current_exception();
-      }
-    }
-    if (error) std::rethrow_exception(error);
+    onRebuiltLevels([&](std::size_t q) {
+      regions[q] = refineCells(grid.cells, full[q], options.refineLevels, options.refineDilation, options.maxRefinedCells,
+                               options.refineDeeperCells, slabsOf(q), shallow[q]);
+      regions[q].knownKeys = std::move(knownKeys[q]);
+      regions[q].knownValues = std::move(knownValues[q]);
+    });
     for (std::size_t q = 0; q < isoValues.size(); ++q) {
       regionsRebuilt = regionsRebuilt || rebuild[q] != 0;
       if (rebuild[q] && cache != nullptr) {
