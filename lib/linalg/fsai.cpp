@@ -5,6 +5,7 @@
 // applied on the device as two SpMVs, G then Gᵀ (docs/method.md §5).
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -15,17 +16,6 @@
 
 namespace duplexfit {
 
-namespace {
-
-/// a_ij from row i of a (columns sorted), 0 when not stored.
-double entry(const CsrMatrix& a, Index i, Index j) {
-  const auto b = a.colIdx.begin() + a.rowPtr[static_cast<std::size_t>(i)];
-  const auto e = a.colIdx.begin() + a.rowPtr[static_cast<std::size_t>(i) + 1];
-  const auto it = std::lower_bound(b, e, j);
-  return it != e && *it == j ? a.values[static_cast<std::size_t>(it - a.colIdx.begin())] : 0.0;
-}
-
-}  // namespace
 
 FsaiPreconditioner::FsaiPreconditioner(const Device& device, const CsrMatrix& a, Precision precision,
                                        double threshold, int maxNeighbours)
@@ -94,6 +84,8 @@ void FsaiPreconditioner::build(const Device& device, const CsrMatrix& a, const E
     std::vector<std::pair<double, Index>> cand;
     std::vector<Index> s;
     std::vector<double> l, y;  // the pattern block's Cholesky factor (row-major, lower) and the solve
+    // slot[j]: the place of column j in the current pattern, −1 for a column outside it (reset after each row).
+    std::vector<std::int32_t> slot(n_, -1);
 #pragma omp for schedule(dynamic, 4096)
     for (std::ptrdiff_t i = 0; i < n; ++i) {
       const auto row = static_cast<std::size_t>(i);
@@ -115,11 +107,26 @@ void FsaiPreconditioner::build(const Device& device, const CsrMatrix& a, const E
       const std::size_t size = s.size();
       // Cholesky of A[S,S] (lower triangle, filled row by row), then L Lᵀ g = e_last: L y = e_last gives
       // y = (0, …, 0, 1/l_last,last), so g = L⁻ᵀ y and the scaled row is g / √g_last.
+      // A[S,S]'s lower triangle into l: each pattern row's entries looked up in `slot` (one pass over the
+      // row's columns below its own, instead of a binary search of the row for every pair; the rows of dense
+      // levels hold 150-260 entries).
       l.assign(size * size, 0.0);
+      for (std::size_t p = 0; p < size; ++p) slot[static_cast<std::size_t>(s[p])] = static_cast<std::int32_t>(p);
+      for (std::size_t p = 0; p < size; ++p) {
+        const auto r = static_cast<std::size_t>(s[p]);
+        for (Index e = a.rowPtr[r]; e < a.rowPtr[r + 1]; ++e) {
+          const Index j = a.colIdx[static_cast<std::size_t>(e)];
+          if (j >= s[p]) break;  // sorted columns: the rest lie on or above the diagonal
+          const std::int32_t q = slot[static_cast<std::size_t>(j)];
+          if (q >= 0) l[p * size + static_cast<std::size_t>(q)] = a.values[static_cast<std::size_t>(e)];
+        }
+        l[p * size + p] = diagonal[s[p]];
+      }
+      for (std::size_t p = 0; p < size; ++p) slot[static_cast<std::size_t>(s[p])] = -1;
       bool spd = true;
       for (std::size_t p = 0; p < size && spd; ++p) {
         for (std::size_t q = 0; q <= p; ++q) {
-          double v = p == q ? diagonal[s[p]] : entry(a, s[p], s[q]);
+          double v = l[p * size + q];
           for (std::size_t t = 0; t < q; ++t) v -= l[p * size + t] * l[q * size + t];
           if (p == q) {
             if (!(v > 0.0)) {
