@@ -52,7 +52,11 @@ struct SurfaceOptions {
   /// around each): a neck is local, while a level set off by more than the limit along whole edges (a CAD
   /// part's creases, where the field's level set itself is rounded) would refine thousands of cells for
   /// little gain (fandisk_50k: 3,439 and 9,575 cells, 6 s of fit became 189 s, the offset still 0.66% off).
-  std::size_t neckPassMaxCells = 1500;
+  /// 2,000 since the refinement as deep as the contour needs (2026-12-06): cells refined one level may sit
+  /// up to the refinement tolerance, so a neck's points beyond the limit span more cells (the bunny twin's
+  /// offset 1,605 in 6 clusters, maxplanck_12k's at δ = 0.025 1,591 in 5), while the crease cases measured
+  /// span 2,460 and more (docs/method.md §7).
+  std::size_t neckPassMaxCells = 2000;
   /// The neck pass first replaces only the faces around its cells (the level set extracted again in boxes
   /// around them, the patch finished on its own and joined by a band); when that is refused (the boundaries
   /// do not pair up, the result is not closed, crosses itself or is not closer) it extracts and finishes the
