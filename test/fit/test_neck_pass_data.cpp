@@ -13,17 +13,32 @@
 
 using namespace duplexfit;
 
+// In the sanitizer build test_refine runs the deeper refinement's code; these fits would take minutes there.
+#ifdef DUPLEXFIT_SANITIZED
+#define SKIP_WHEN_SANITIZED DUPLEXFIT_SKIP("in the sanitizer build (test_refine runs the deeper refinement's code there)")
+#else
+#define SKIP_WHEN_SANITIZED static_cast<void>(0)
+#endif
+
+namespace {
+
+/// The default pipeline on a shared cloud with one inward offset: its zero level and offset.
+PipelineResult defaultFit(const Device& device, const std::string& cloud, double delta, PipelineOptions& o) {
+  o.fit.offsets = {delta};
+  PipelineResult result = runPipeline(device, cloud, o);
+  REQUIRE(result.surfaces.size() == 2);
+  return result;
+}
+
+}  // namespace
+
 TEST_SUITE("fit") {
   TEST_CASE("neck pass: maxplanck_12k at delta 0.02, every mesh within 0.1% of the side of its level set") {
-#ifdef DUPLEXFIT_SANITIZED
-    DUPLEXFIT_SKIP("in the sanitizer build (test_refine runs the deeper refinement's code there)");
-#endif
+    SKIP_WHEN_SANITIZED;
     DUPLEXFIT_SHARED_DATA_DIR(dir);
     DUPLEXFIT_OPENCL_DEVICE(device);
     PipelineOptions o;
-    o.fit.offsets = {0.02};
-    const PipelineResult result = runPipeline(device, dir + "/clouds/maxplanck_12k.ply", o);
-    REQUIRE(result.surfaces.size() == 2);
+    const PipelineResult result = defaultFit(device, dir + "/clouds/maxplanck_12k.ply", 0.02, o);
     for (const PipelineSurface& s : result.surfaces) {
       CAPTURE(s.offset);
       const MeshFinishReport& f = s.finish;
@@ -57,23 +72,17 @@ TEST_SUITE("fit") {
     CHECK(plain.finish.deviation.relativeMax > 1e-3);
     CHECK(plain.finish.deviation.relativeMax == doctest::Approx(neck.maxBefore));
   }
-}
 
-TEST_SUITE("fit") {
   // The noisy bunny's offset at δ = 0.025 ends in a thin, sharp tail whose points beyond the limit span about
   // 1,600 cells in 6 clusters (within neckPassMaxCells since 2026-12-06). Its first local round brings the
   // offset from 1% of the side to about the limit; the second round's local replacement crosses the kept faces,
   // and the first round's patch stays instead of the whole level set being extracted again.
   TEST_CASE("neck pass: bunny_35k_noise0.5pct at delta 0.025, a local round near the limit is not redone whole") {
-#ifdef DUPLEXFIT_SANITIZED
-    DUPLEXFIT_SKIP("in the sanitizer build (test_refine runs the deeper refinement's code there)");
-#endif
+    SKIP_WHEN_SANITIZED;
     DUPLEXFIT_SHARED_DATA_DIR(dir);
     DUPLEXFIT_OPENCL_DEVICE(device);
     PipelineOptions o;
-    o.fit.offsets = {0.025};
-    const PipelineResult result = runPipeline(device, dir + "/clouds/bunny_35k_noise0.5pct.ply", o);
-    REQUIRE(result.surfaces.size() == 2);
+    const PipelineResult result = defaultFit(device, dir + "/clouds/bunny_35k_noise0.5pct.ply", 0.025, o);
     const PipelineSurface& offset = result.surfaces[1];
     const NeckPassReport& neck = offset.finish.neckPass;
     MESSAGE("offset: neck pass applied " << neck.applied << ", kept " << neck.kept << ", local " << neck.local << ", "
