@@ -16,7 +16,6 @@
 
 namespace duplexfit {
 
-
 FsaiPreconditioner::FsaiPreconditioner(const Device& device, const CsrMatrix& a, Precision precision,
                                        double threshold, int maxNeighbours)
     : threshold_(threshold), maxNeighbours_(maxNeighbours), n_(static_cast<std::size_t>(a.rows)) {
@@ -105,8 +104,6 @@ void FsaiPreconditioner::build(const Device& device, const CsrMatrix& a, const E
       std::sort(s.begin(), s.end());
       s.push_back(static_cast<Index>(i));
       const std::size_t size = s.size();
-      // Cholesky of A[S,S] (lower triangle, filled row by row), then L Lᵀ g = e_last: L y = e_last gives
-      // y = (0, …, 0, 1/l_last,last), so g = L⁻ᵀ y and the scaled row is g / √g_last.
       // A[S,S]'s lower triangle into l: each pattern row's entries looked up in `slot` (one pass over the
       // row's columns below its own, instead of a binary search of the row for every pair; the rows of dense
       // levels hold 150-260 entries).
@@ -123,6 +120,8 @@ void FsaiPreconditioner::build(const Device& device, const CsrMatrix& a, const E
         l[p * size + p] = diagonal[s[p]];
       }
       for (std::size_t p = 0; p < size; ++p) slot[static_cast<std::size_t>(s[p])] = -1;
+      // Cholesky of A[S,S] in place (lower triangle, row by row), then L Lᵀ g = e_last: L y = e_last gives
+      // y = (0, …, 0, 1/l_last,last), so g = L⁻ᵀ y and the scaled row is g / √g_last.
       bool spd = true;
       for (std::size_t p = 0; p < size && spd; ++p) {
         for (std::size_t q = 0; q <= p; ++q) {

@@ -476,11 +476,11 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
       }
       r.localRefused = refused;
       // After a kept round that left the mesh within kWholeAgainFactor of the limit, extracting and finishing
-      // the whole level set again is not worth its cost: the earlier round's patch stays.
+      // the whole level set again is not worth its cost: the earlier round's mesh stays.
       if (kept && finish.deviation.max <= kWholeAgainFactor * finish.deviation.limit) {
         std::ostringstream line;
         line << name << ": neck pass " << round + 1 << ": the local replacement was not kept (" << refused
-             << "): the earlier round's patch stays (" << std::setprecision(4) << 100.0 * finish.deviation.relativeMax
+             << "): the earlier round's mesh stays (" << std::setprecision(4) << 100.0 * finish.deviation.relativeMax
              << "% of the largest side)";
         progress.log(line.str());
         break;
