@@ -225,6 +225,16 @@ TEST_CASE("check: self-intersections of overlapping spheres and of triangle pair
     CHECK(intersections(soup({{{0, 0, 0, 1, 0, 0, 0, 1, 0}}, {{0, 0, 0, 0, 1, 0, -1, -0.01, 0}}})) == 0);
     CHECK(intersections(soup({{{0, 0, 0, 1, 0, 0, 0, 1, 0}}, {{0, 0, 0, 1, 1, 0, -1, 2, 0}}})) == 1);
     CHECK(intersections(soup({{{0, 0, 0, 1, 0, 0, 0, 1, 0}}, {{0, 0, 0, 2, 0, 0, 0, 2, 0}}})) == 1);
+    // A wedge over the other, tipped off its plane to one side (decided from the plane distances when they
+    // exceed 1e-4 of the edges, by the sector test below that): touching at the vertex only. Lying in the
+    // plane it overlaps; with its corners on both sides it passes through.
+    for (const double tip : {1e-2, 1e-3, 1e-5, 1e-7}) {
+      CAPTURE(tip);
+      CHECK(intersections(soup({{{0, 0, 0, 1, 0, 0, 0, 1, 0}}, {{0, 0, 0, 1, 0.5, tip, 0.5, 1, tip}}})) == 0);
+      CHECK(intersections(soup({{{0, 0, 0, 1, 0, 0, 0, 1, 0}}, {{0, 0, 0, 1, 0.5, -tip, 0.5, 1, -tip}}})) == 0);
+      CHECK(intersections(soup({{{0, 0, 0, 1, 0, 0, 0, 1, 0}}, {{0, 0, 0, 1, 0.5, tip, 0.5, 1, -tip}}})) == 1);
+    }
+    CHECK(intersections(soup({{{0, 0, 0, 1, 0, 0, 0, 1, 0}}, {{0, 0, 0, 1, 0.5, 0, 0.5, 1, 0}}})) == 1);
   }
   SUBCASE("pairs sharing an edge, and duplicates") {
     // A dihedral angle: fine. Flat and unfolded: fine. Folded onto each other: intersecting.
