@@ -629,13 +629,9 @@ Extraction extractMeshes(NodeStore& store, const GridSpec& grid, const std::vect
         full[q] = thin[q].empty() ? thin[q]
                                   : refinedDeviatingCells(coarser[q], thin[q], store, grid, isoValues[q], sampler,
                                                           options.refineTolerance, options.batchSize, stats,
-                                                          std::int32_t{1} << deepest, knownKeys[q], knownValues[q]);
+                                                          std::int32_t{1} << deepest, knownKeys[q], knownValues[q],
+                                                          &shallow[q]);
         coarser[q] = RefinedRegion();
-        std::vector<Cell> sortedFull = full[q];
-        std::sort(sortedFull.begin(), sortedFull.end());
-        for (const Cell& c : thin[q]) {
-          if (!std::binary_search(sortedFull.begin(), sortedFull.end(), c)) shallow[q].push_back(c);
-        }
         stats.shallowCells += static_cast<std::int64_t>(shallow[q].size());
         full[q].insert(full[q].end(), options.refineCells.begin(), options.refineCells.end());
       }

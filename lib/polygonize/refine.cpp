@@ -764,7 +764,8 @@ std::vector<std::array<int, 3>> refinedDeviatingCells(const RefinedRegion& regio
                                                       const FieldSampler& sampler, double tol,
                                                       std::int64_t batchSize, PolygonizeStats& stats,
                                                       std::int32_t toFactor, std::vector<std::uint64_t>& knownKeys,
-                                                      std::vector<float>& knownValues) {
+                                                      std::vector<float>& knownValues,
+                                                      std::vector<std::array<int, 3>>* within) {
   if (region.empty() || region.skipped || toFactor < region.factor || toFactor % region.factor != 0) {
     return candidates;
   }
@@ -871,7 +872,11 @@ std::vector<std::array<int, 3>> refinedDeviatingCells(const RefinedRegion& regio
   });
   std::vector<std::array<int, 3>> out;
   for (std::size_t c = 0; c < candidates.size(); ++c) {
-    if (deviates[c] != 0) out.push_back(candidates[c]);
+    if (deviates[c] != 0) {
+      out.push_back(candidates[c]);
+    } else if (within != nullptr) {
+      within->push_back(candidates[c]);
+    }
   }
   return out;
 }

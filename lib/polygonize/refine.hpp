@@ -89,14 +89,15 @@ void evaluateInBatches(const FieldSampler& sampler, const std::vector<Eigen::Vec
 /// or the cell's lattice still has a layer one lattice point thick (a point whose two axis neighbours in the
 /// cell lie on the other side of iso, whatever tol); a candidate outside the region counts as such. The values evaluated at the region's lattice points are
 /// appended to knownKeys / knownValues, keyed on a lattice of factor toFactor (a multiple of the
-/// region's).
+/// region's). `within` (when not null) receives the other candidates, in their order.
 std::vector<std::array<int, 3>> refinedDeviatingCells(const RefinedRegion& region,
                                                       const std::vector<std::array<int, 3>>& candidates,
                                                       const NodeStore& store, const GridSpec& grid, double iso,
                                                       const FieldSampler& sampler, double tol,
                                                       std::int64_t batchSize, PolygonizeStats& stats,
                                                       std::int32_t toFactor, std::vector<std::uint64_t>& knownKeys,
-                                                      std::vector<float>& knownValues);
+                                                      std::vector<float>& knownValues,
+                                                      std::vector<std::array<int, 3>>* within = nullptr);
 
 /// Contours the refined region for each iso value. Node values come from the store where sampled;
 /// the other lattice points are evaluated with sampler (in batches of batchSize; counted in

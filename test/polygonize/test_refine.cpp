@@ -409,9 +409,12 @@ TEST_SUITE("polygonize") {
     more.push_back({0, 0, 0});
     keys.clear();
     values.clear();
+    std::vector<std::array<int, 3>> within;
     const auto curved = duplexfit::detail::refinedDeviatingCells(region, more, store, g, 0.0, samplerOf(ball), 1e-4, 64,
-                                                                  stats, 4, keys, values);
+                                                                  stats, 4, keys, values, &within);
     CHECK(curved == std::vector<std::array<int, 3>>{{3, 3, 3}, {0, 0, 0}});
+    CHECK(within.size() + curved.size() == more.size());  // the others, the partition's second part
+    for (const auto& c : within) CHECK(std::find(curved.begin(), curved.end(), c) == curved.end());
     // A plate 0.4 h thick centred on the middle lattice plane of cell (3, 3, 3) (z = −h/2) is one finer
     // lattice point thick there: refined further whatever the tolerance; a plate 1.2 h thick centred on the
     // cell's lower face is not, and its contour in the cell (where f is linear) is exact.
