@@ -91,6 +91,9 @@ int cmdFit(int argc, char** argv) {
   app.add_flag("--side-test", fit.sideTest, "reject offset points behind their nearest point's tangent plane");
   app.add_flag_callback("--no-anchors", [&] { fit.signAnchors = false; }, "no sign anchors in empty space");
   addInteger(app, "anchor-skip", fit.anchorSkipFinest, "sign anchors at levels 1 .. M - N (default 1)");
+  app.add_flag_callback("--no-phantom-repair", [&] { o.repairPhantoms = false; },
+                        "keep zero-level components without input points that the winding number calls empty "
+                        "space (else removed from the field and the mesh)");
   app.add_flag_callback("--no-medial", [&] { fit.medialConstraints = false; }, "drop invalid offset points, not moved");
   app.add_flag("--offset-correction", fit.offsetCorrection, "add the offset-correction level (experimental)");
   app.add_flag("--estimate-normals", o.estimateNormals, "estimate and orient normals first (PCA)");

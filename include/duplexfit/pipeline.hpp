@@ -29,6 +29,7 @@
 #include "duplexfit/io.hpp"
 #include "duplexfit/mesh.hpp"
 #include "duplexfit/mesh_sampling.hpp"
+#include "duplexfit/phantom_repair.hpp"
 #include "duplexfit/point_set.hpp"
 #include "duplexfit/preprocess.hpp"
 #include "duplexfit/self_check.hpp"
@@ -70,6 +71,11 @@ struct PipelineOptions {
   SurfaceOptions surface{};
   /// Clean-up and self-check of the meshes (cleanAndSelfCheck); the CLI's defaults.
   SelfCheckOptions selfCheck = defaultSelfCheck();
+  /// Before the self-check (duplex mode, not distributed): zero-level components that carry no input point
+  /// and whose inside the winding number calls empty space are removed from the field's finest level and
+  /// from the mesh (repairPhantoms; the CLI's --no-phantom-repair turns it off).
+  bool repairPhantoms = true;
+  PhantomRepairOptions phantomRepair{};
   /// Also the printable shell: the zero mesh and the mesh of the smallest inward offset (δ > 0, which the
   /// fit must have: else runPipeline throws InvalidArgument before reading) joined into one closed mesh,
   /// cut by shellOptions' drain holes in the field (duplex mode only). shellOptions.offset is ignored (the
@@ -136,6 +142,8 @@ struct PipelineReport {
   std::vector<FitReport> separateFits;
   std::vector<std::size_t> separateFittedPoints;  ///< points each separate fit used
   SelfCheckReport selfCheck;
+  /// What the phantom repair found and did (candidates 0 when it did not run or found nothing).
+  PhantomRepairReport phantomRepair;
   /// The first field's extraction: its grid, statistics, growths and boundary contact.
   GridSpec grid;
   PolygonizeStats gridStats;

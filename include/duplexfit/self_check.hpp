@@ -60,6 +60,17 @@ struct DropResult {
 };
 DropResult dropSmallComponents(const Mesh& mesh, double minAreaFraction);
 
+/// A component of a zero-level mesh with no input point near it (emptyZeroLevelComponents).
+struct EmptyComponent {
+  std::size_t component = 0;       ///< its label in faceComponents() order
+  std::size_t faces = 0;
+  double area = 0.0;
+  Eigen::AlignedBox3d box;         ///< bounds of its vertices
+  double nearestInputPoint = 0.0;  ///< from its nearest vertex to the nearest input point
+  std::vector<Index> faceList;     ///< its faces (ascending)
+  std::vector<Index> vertexList;   ///< its vertices (in the order its faces first use them)
+};
+
 struct SelfCheckOptions {
   /// An input point "lands on" a zero-level component when its distance to the component is at most this
   /// (input units); 0: pointToleranceEdges × the mean edge length of the zero-level mesh.
@@ -74,6 +85,10 @@ struct SelfCheckOptions {
   /// The same for the offset meshes only (the larger of the two applies there): slivers of the δ level
   /// where a part is almost exactly 2δ thick.
   double minOffsetAreaFraction = 0.0;
+  /// Also list (SelfCheckReport::emptyComponents) the zero-level components with no input point within
+  /// this many mean edge lengths, the phantom repair's candidates (0: not asked). At one edge, half the
+  /// check's default, a phantom beside a real surface that the check lets pass is among them.
+  double candidateEdges = 0.0;
 };
 
 /// One mesh's part of the check.
@@ -90,6 +105,9 @@ struct SurfaceSelfCheck {
 struct SelfCheckReport {
   std::vector<ComponentIssue> issues;     ///< by surface, then component label
   std::vector<SurfaceSelfCheck> surfaces;  ///< one per mesh
+  /// With SelfCheckOptions::candidateEdges: the zero-level components without input points within that
+  /// tolerance, with their faces (label order).
+  std::vector<EmptyComponent> emptyComponents;
   double pointTolerance = 0.0;            ///< the tolerance used (input units; 0 when not checked)
   bool pointsChecked = false;             ///< input points were given, so NoInputPoints was tested
   double minAreaFraction = 0.0;           ///< as given to cleanAndSelfCheck
@@ -116,6 +134,12 @@ double dropFraction(const SelfCheckOptions& options, std::size_t mesh);
 /// dropSmallComponents on every mesh of a fit in place, at dropFraction; what each lost (in mesh order).
 /// @throws InvalidArgument when a fraction is not in [0, 1).
 std::vector<DroppedComponents> dropSmallComponents(std::vector<Mesh>& meshes, const SelfCheckOptions& options);
+
+/// The components of a zero-level mesh with no input point within toleranceEdges × the mesh's mean edge
+/// length of their triangles: selfCheck's NoInputPoints test at another tolerance (the phantom repair asks
+/// at one edge, half the check's default, since a phantom beside a real surface can lie within two).
+/// @throws InvalidArgument when toleranceEdges is not finite and > 0, or an index is out of range.
+std::vector<EmptyComponent> emptyZeroLevelComponents(const Mesh& zero, const Points& inputPoints, double toleranceEdges);
 
 /// dropSmallComponents(meshes, options), then selfCheck on the result; the report's surfaces say what was
 /// dropped, and seconds cover both.

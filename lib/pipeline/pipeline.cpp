@@ -615,8 +615,8 @@ std::vector<MeshFinishReport> finishMeshesWithNeckPass(const FieldEvaluator& eva
 
 /// After the fit: the surfaces, the self-check against `checkPoints`, clean-up and topology, the shell.
 void extractAndFinish(const Device& device, PipelineResult& result, std::shared_ptr<const FieldEvaluator> evaluator,
-                      const Points& checkPoints, const PipelineOptions& options, const Progress& progress,
-                      Communicator* comm = nullptr) {
+                      const Points& checkPoints, const Points& checkNormals, const PipelineOptions& options,
+                      const Progress& progress, Communicator* comm = nullptr) {
   PipelineReport& report = result.report;
   const FitReport& rep = report.fit;
   const Precision precision = options.fit.precision;
@@ -702,13 +702,51 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
     topologies = std::async(std::launch::deferred, topologyOf);  // no thread to spare: taken below
   }
   progress.start("self-check");
-  report.selfCheck = selfCheck(meshes, isos, checkPoints, options.selfCheck);
+  // Phantom solid left in a pocket or a narrow gap, too near the samples for the sign anchors: removed from
+  // the field and the zero mesh, then checked again (docs/method.md, "Phantom repair").
+  const bool repairs = options.repairPhantoms && !options.separate && evaluator &&
+                       checkNormals.rows() == checkPoints.rows() && checkPoints.rows() > 0;
+  SelfCheckOptions checkOptions = options.selfCheck;
+  if (repairs && !(checkOptions.candidateEdges > 0.0)) checkOptions.candidateEdges = options.phantomRepair.candidateEdges;
+  report.selfCheck = selfCheck(meshes, isos, checkPoints, checkOptions);
+  std::vector<MeshTopology> topology = topologies.get();
+  if (repairs && !report.selfCheck.emptyComponents.empty()) {
+    PhantomRepairResult repaired = repairPhantoms(device, precision, result.fields[0], *evaluator, checkPoints, checkNormals,
+                                                  meshes, isos, report.selfCheck.emptyComponents, options.phantomRepair);
+    const PhantomRepairReport& pr = repaired.report;
+    if (repaired.field) {
+      result.fields[0] = std::move(*repaired.field);
+      evaluator = std::make_shared<const FieldEvaluator>(device, result.fields[0], precision);
+      for (std::size_t j = 0; j < repaired.moves.size() && j < meshes.size(); ++j) {
+        for (const auto& [v, x] : repaired.moves[j]) meshes[j].vertices.row(v) = x.transpose();
+      }
+      for (std::size_t j = 0; j < repaired.removedFaces.size() && j < meshes.size(); ++j) {
+        if (repaired.removedFaces[j].empty()) continue;
+        std::vector<char> keep(static_cast<std::size_t>(meshes[j].faces.rows()), 1);
+        for (const Index f : repaired.removedFaces[j]) keep[static_cast<std::size_t>(f)] = 0;
+        meshes[j] = keepFaces(meshes[j], keep);
+        topology[j] = analyzeTopology(meshes[j]);
+      }
+      progress.log("phantom repair: " + std::to_string(pr.repaired) + " zero-level component(s) without input points (" +
+                   std::to_string(pr.repairedFaces) + " faces) removed from the field and the mesh" +
+                   (pr.offsetFaces > 0 ? " with " + std::to_string(pr.offsetFaces) + " offset faces inside them" : std::string()) +
+                   " (" +
+                   std::to_string(pr.anchors) + " anchors, " + std::to_string(pr.keepPoints) +
+                   " keep points at the finest level; vertices beside it moved by at most " + numText(pr.maxChange) +
+                   " onto the level sets), " + std::to_string(pr.seconds) + " s");
+      const double firstCheck = report.selfCheck.seconds;
+      report.selfCheck = selfCheck(meshes, isos, checkPoints, options.selfCheck);
+      report.selfCheck.seconds += firstCheck;
+    } else if (!pr.refused.empty()) {
+      progress.log("phantom repair: refused (" + pr.refused + ")");
+    }
+    report.phantomRepair = pr;
+  }
   for (std::size_t i = 0; i < report.selfCheck.surfaces.size(); ++i) report.selfCheck.surfaces[i].dropped = dropped[i];
   report.selfCheck.seconds += dropSeconds;
   logSelfCheck(report.selfCheck, progress);
   progress.end();
 
-  const std::vector<MeshTopology> topology = topologies.get();
   for (std::size_t i = 0; i < meshes.size(); ++i) {
     PipelineSurface s;
     s.field = options.separate ? i : 0;
@@ -939,7 +977,9 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
   warnUnconverged(rep);
   for (std::size_t j = 1; j < report.separateFits.size(); ++j) warnUnconverged(report.separateFits[j]);
 
-  extractAndFinish(device, result, std::move(evaluator), file.points.positions(), options, progress);
+  // The phantom repair's winding number takes outward normals.
+  const Points outward = fitOptions.normalsInward ? Points(-file.points.normals()) : file.points.normals();
+  extractAndFinish(device, result, std::move(evaluator), file.points.positions(), outward, options, progress);
   report.secondsTotal = secondsSince(start);
   return result;
 }
@@ -1267,7 +1307,7 @@ PipelineResult runDistributedPipeline(const Device& device, Communicator& comm, 
   report.distributed = std::move(drep);
   result.fields.push_back(std::move(fitted.field));
   progress.end();
-  extractAndFinish(device, result, std::move(fitted.evaluator), checkPoints, options, progress, &comm);
+  extractAndFinish(device, result, std::move(fitted.evaluator), checkPoints, Points(0, 3), options, progress, &comm);
   report.secondsTotal = secondsSince(start);
   return result;
 }

@@ -542,6 +542,14 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
   }
   w["meshes"] = std::move(meshes);
   w["self_check"] = selfCheckJson(report.selfCheck, meshNames);
+  const PhantomRepairReport& pr = report.phantomRepair;
+  w["phantom_repair"] = Json{{"candidates", pr.candidates},   {"repaired", pr.repaired},
+                             {"repaired_faces", pr.repairedFaces}, {"offset_faces", pr.offsetFaces},
+                             {"not_phantom", pr.notPhantom},
+                             {"anchors", pr.anchors},         {"keep_points", pr.keepPoints},
+                             {"max_change", pr.maxChange},    {"max_deviation", pr.maxDeviation},
+                             {"rounds", pr.rounds},           {"refused", pr.refused},
+                             {"seconds", pr.seconds}};
   w["shell"] = shellJson(result, meshNames, meshFormat);
   w["grid"] = Json{{"nx", report.grid.cells.x()},
                    {"ny", report.grid.cells.y()},

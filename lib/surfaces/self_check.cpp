@@ -8,6 +8,7 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "duplexfit/error.hpp"
@@ -154,6 +155,77 @@ std::vector<char> componentsWithPoints(const Mesh& mesh, const TriangleBvh& tree
   return carried;
 }
 
+/// The components of the zero-level mesh with no input point within `tol` of their triangles, each with
+/// the distance from its nearest vertex to the nearest input point (label order).
+std::vector<std::pair<std::size_t, double>> emptyComponents(const Mesh& zero, const TriangleBvh& tree, const Components& c,
+                                                            const Points& inputPoints, double tol) {
+  std::vector<std::pair<std::size_t, double>> out;
+  const std::vector<char> carried = componentsWithPoints(zero, tree, c.labels, c.stats.size(), inputPoints, tol);
+  std::vector<char> isEmpty(c.stats.size(), 0);
+  bool any = false;
+  for (std::size_t l = 0; l < carried.size(); ++l) {
+    isEmpty[l] = static_cast<char>(!carried[l]);
+    any = any || isEmpty[l];
+  }
+  if (!any) return out;
+  // How far the nearest input point is, from the vertices of each empty component.
+  std::vector<Index> vertexLabel(static_cast<std::size_t>(zero.vertices.rows()), -1);
+  for (Eigen::Index f = 0; f < zero.faces.rows(); ++f) {
+    const Index l = c.labels[static_cast<std::size_t>(f)];
+    if (!isEmpty[static_cast<std::size_t>(l)]) continue;
+    for (int k = 0; k < 3; ++k) vertexLabel[static_cast<std::size_t>(zero.faces(f, k))] = l;
+  }
+  std::vector<Eigen::Index> rows;
+  for (std::size_t v = 0; v < vertexLabel.size(); ++v) {
+    if (vertexLabel[v] >= 0) rows.push_back(static_cast<Eigen::Index>(v));
+  }
+  Points queries(static_cast<Eigen::Index>(rows.size()), 3);
+  for (std::size_t i = 0; i < rows.size(); ++i) queries.row(static_cast<Eigen::Index>(i)) = zero.vertices.row(rows[i]);
+  const NeighborLists nearest = NeighborIndex(inputPoints).knnSearch(queries, 1);
+  std::vector<double> best(c.stats.size(), std::numeric_limits<double>::infinity());
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (nearest.count(i) == 0) continue;
+    const auto l = static_cast<std::size_t>(vertexLabel[static_cast<std::size_t>(rows[i])]);
+    best[l] = std::min(best[l], nearest.distances[static_cast<std::size_t>(nearest.offsets[i])]);
+  }
+  for (std::size_t l = 0; l < isEmpty.size(); ++l) {
+    if (isEmpty[l]) out.emplace_back(l, best[l]);
+  }
+  return out;
+}
+
+/// The listed components (label, nearest input point) with their faces and vertices.
+std::vector<EmptyComponent> describeEmpty(const Mesh& zero, const Components& c,
+                                          const std::vector<std::pair<std::size_t, double>>& list) {
+  std::vector<EmptyComponent> out;
+  if (list.empty()) return out;
+  std::vector<Index> slot(c.stats.size(), -1);
+  for (const auto& [l, nearest] : list) {
+    EmptyComponent e;
+    e.component = l;
+    e.faces = c.stats[l].faces;
+    e.area = c.stats[l].area;
+    e.box = c.stats[l].box;
+    e.nearestInputPoint = nearest;
+    slot[l] = static_cast<Index>(out.size());
+    out.push_back(std::move(e));
+  }
+  std::vector<char> seen(static_cast<std::size_t>(zero.vertices.rows()), 0);
+  for (Eigen::Index f = 0; f < zero.faces.rows(); ++f) {
+    const Index i = slot[static_cast<std::size_t>(c.labels[static_cast<std::size_t>(f)])];
+    if (i < 0) continue;
+    EmptyComponent& e = out[static_cast<std::size_t>(i)];
+    e.faceList.push_back(static_cast<Index>(f));
+    for (int k = 0; k < 3; ++k) {
+      const auto v = static_cast<std::size_t>(zero.faces(f, k));
+      if (seen[v]) continue;
+      seen[v] = 1;
+      e.vertexList.push_back(static_cast<Index>(v));
+    }
+  }
+  return out;
+}
+
 ComponentIssue makeIssue(int surface, double iso, std::size_t label, const ComponentStats& s, double meshArea,
                          ComponentIssue::Why why) {
   ComponentIssue issue;
@@ -266,46 +338,24 @@ SelfCheckReport selfCheck(const std::vector<Mesh>& meshes, const std::vector<dou
   // The zero level: every component must carry input points.
   if (zeroTree && inputPoints.rows() > 0) {
     r.pointsChecked = true;
-    r.pointTolerance =
-        options.pointTolerance > 0.0 ? options.pointTolerance : options.pointToleranceEdges * meanEdgeLength(zero);
+    const double edge = meanEdgeLength(zero);
+    r.pointTolerance = options.pointTolerance > 0.0 ? options.pointTolerance : options.pointToleranceEdges * edge;
     const Components& c = comps[0];
-    const std::vector<char> carried =
-        componentsWithPoints(zero, *zeroTree, c.labels, c.stats.size(), inputPoints, r.pointTolerance);
-    std::vector<std::size_t> empty;
-    for (std::size_t l = 0; l < carried.size(); ++l) {
-      if (!carried[l]) empty.push_back(l);
+    // The components without points within the candidates' tolerance first when it is the smaller: the
+    // issues are among them (none when every component carries points there, the usual case, at the cost
+    // of one early-ending pass).
+    const double looseTol = options.candidateEdges * edge;
+    std::vector<std::pair<std::size_t, double>> loose;
+    const bool asked = options.candidateEdges > 0.0 && looseTol < r.pointTolerance;
+    if (asked) loose = emptyComponents(zero, *zeroTree, c, inputPoints, looseTol);
+    const std::vector<std::pair<std::size_t, double>> strict =
+        asked && loose.empty() ? loose : emptyComponents(zero, *zeroTree, c, inputPoints, r.pointTolerance);
+    for (const auto& [l, nearest] : strict) {
+      ComponentIssue issue = makeIssue(0, 0.0, l, c.stats[l], c.area, ComponentIssue::Why::NoInputPoints);
+      issue.nearestInputPoint = nearest;
+      r.issues.push_back(issue);
     }
-    if (!empty.empty()) {
-      // How far the nearest input point is, from the vertices of each empty component.
-      std::vector<char> isEmpty(c.stats.size(), 0);
-      for (std::size_t l : empty) isEmpty[l] = 1;
-      std::vector<Index> vertexLabel(static_cast<std::size_t>(zero.vertices.rows()), -1);
-      for (Eigen::Index f = 0; f < zero.faces.rows(); ++f) {
-        const Index l = c.labels[static_cast<std::size_t>(f)];
-        if (!isEmpty[static_cast<std::size_t>(l)]) continue;
-        for (int k = 0; k < 3; ++k) vertexLabel[static_cast<std::size_t>(zero.faces(f, k))] = l;
-      }
-      std::vector<Eigen::Index> rows;
-      for (std::size_t v = 0; v < vertexLabel.size(); ++v) {
-        if (vertexLabel[v] >= 0) rows.push_back(static_cast<Eigen::Index>(v));
-      }
-      Points queries(static_cast<Eigen::Index>(rows.size()), 3);
-      for (std::size_t i = 0; i < rows.size(); ++i) {
-        queries.row(static_cast<Eigen::Index>(i)) = zero.vertices.row(rows[i]);
-      }
-      const NeighborLists nearest = NeighborIndex(inputPoints).knnSearch(queries, 1);
-      std::vector<double> best(c.stats.size(), std::numeric_limits<double>::infinity());
-      for (std::size_t i = 0; i < rows.size(); ++i) {
-        if (nearest.count(i) == 0) continue;
-        const auto l = static_cast<std::size_t>(vertexLabel[static_cast<std::size_t>(rows[i])]);
-        best[l] = std::min(best[l], nearest.distances[static_cast<std::size_t>(nearest.offsets[i])]);
-      }
-      for (std::size_t l : empty) {
-        ComponentIssue issue = makeIssue(0, 0.0, l, c.stats[l], c.area, ComponentIssue::Why::NoInputPoints);
-        issue.nearestInputPoint = best[l];
-        r.issues.push_back(issue);
-      }
-    }
+    if (options.candidateEdges > 0.0) r.emptyComponents = describeEmpty(zero, c, asked ? loose : strict);
   }
 
   // The offsets: every component must lie at about |δ_j| from the zero level.
@@ -353,6 +403,16 @@ SelfCheckReport cleanAndSelfCheck(std::vector<Mesh>& meshes, const std::vector<d
   for (std::size_t i = 0; i < r.surfaces.size(); ++i) r.surfaces[i].dropped = dropped[i];
   r.seconds = secondsSince(start);
   return r;
+}
+
+std::vector<EmptyComponent> emptyZeroLevelComponents(const Mesh& zero, const Points& inputPoints, double toleranceEdges) {
+  if (!(std::isfinite(toleranceEdges) && toleranceEdges > 0.0)) {
+    throw InvalidArgument("empty components: the tolerance must be finite and > 0 mesh edges");
+  }
+  if (zero.faces.rows() == 0 || inputPoints.rows() == 0) return {};
+  const Components c = components(zero);
+  const TriangleBvh tree(zero);
+  return describeEmpty(zero, c, emptyComponents(zero, tree, c, inputPoints, toleranceEdges * meanEdgeLength(zero)));
 }
 
 }  // namespace duplexfit

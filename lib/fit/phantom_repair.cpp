@@ -1,0 +1,401 @@
+// Phantom repair (see include/duplexfit/phantom_repair.hpp and docs/method.md, "Phantom repair").
+#include "duplexfit/phantom_repair.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+
+#include "duplexfit/error.hpp"
+#include "duplexfit/neighbors.hpp"
+#include "duplexfit/self_check.hpp"
+#include "duplexfit/wendland.hpp"
+#include "duplexfit/winding.hpp"
+#include "fit/anchors.hpp"
+#include "spatial/disk_distance.hpp"
+
+namespace duplexfit {
+
+namespace {
+
+Points normalised(const Points& x, const Normalization& n) {
+  Points u(x.rows(), 3);
+  for (Eigen::Index i = 0; i < x.rows(); ++i) u.row(i) = n.scale * (x.row(i) - n.centre.transpose());
+  return u;
+}
+
+Points stack(const std::vector<Eigen::Vector3d>& rows) {
+  Points p(static_cast<Eigen::Index>(rows.size()), 3);
+  for (std::size_t i = 0; i < rows.size(); ++i) p.row(static_cast<Eigen::Index>(i)) = rows[i].transpose();
+  return p;
+}
+
+/// The grid nodes of spacing h over `box` (normalised units), at most maxNodes (else none).
+std::vector<Eigen::Vector3d> gridNodes(const Eigen::AlignedBox3d& box, double h, std::size_t maxNodes) {
+  std::vector<Eigen::Vector3d> nodes;
+  Eigen::Array3i n;
+  std::size_t total = 1;
+  for (int a = 0; a < 3; ++a) {
+    n[a] = 1 + static_cast<int>(std::ceil(box.sizes()[a] / h));
+    total *= static_cast<std::size_t>(n[a]);
+  }
+  if (total > maxNodes) return nodes;
+  nodes.reserve(total);
+  for (int k = 0; k < n[2]; ++k) {
+    for (int j = 0; j < n[1]; ++j) {
+      for (int i = 0; i < n[0]; ++i) nodes.push_back(box.min() + h * Eigen::Vector3d(i, j, k));
+    }
+  }
+  return nodes;
+}
+
+}  // namespace
+
+PhantomRepairResult repairPhantoms(const Device& device, Precision precision, const ImplicitField& field,
+                                   const FieldEvaluator& evaluator, const Points& points, const Points& outwardNormals,
+                                   const std::vector<Mesh>& meshes, const std::vector<double>& isos,
+                                   const std::vector<EmptyComponent>& candidates, const PhantomRepairOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  if (meshes.empty() || meshes.size() != isos.size() || isos[0] != 0.0) {
+    throw InvalidArgument("phantom repair: need the zero-level mesh first and one iso value per mesh");
+  }
+  if (points.rows() != outwardNormals.rows()) {
+    throw InvalidArgument("phantom repair: " + std::to_string(points.rows()) + " points but " +
+                          std::to_string(outwardNormals.rows()) + " normals");
+  }
+  if (field.levels().empty()) throw InvalidArgument("phantom repair: the field has no levels");
+  if (!(options.anchorSpacing > 0.0) || !(options.keepRadius > 0.0) || !(options.minDistanceFraction > 0.0) ||
+      !(options.maxChange > 0.0)) {
+    throw InvalidArgument("phantom repair: spacing, keep radius, distance fraction and change must be > 0");
+  }
+  PhantomRepairResult out;
+  PhantomRepairReport& rep = out.report;
+  const auto finish = [&]() -> PhantomRepairResult {
+    rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return std::move(out);
+  };
+  const std::vector<EmptyComponent>& empty = candidates;
+  for (const EmptyComponent& e : empty) {
+    for (const Index f : e.faceList) {
+      if (f < 0 || f >= meshes[0].faces.rows()) throw InvalidArgument("phantom repair: a candidate's face is not in the mesh");
+    }
+  }
+  rep.candidates = empty.size();
+  if (empty.empty()) return finish();
+
+  const Normalization& norm = field.normalization();
+  const Points u = normalised(points, norm);
+  const Points inward = -outwardNormals;
+  const NeighborIndex index(u);
+  const WindingNumber winding(u, outwardNormals, estimatePointAreas(u, outwardNormals, 12, index));
+  const double sigma = field.levels().back().sigma;
+  const double h = options.anchorSpacing * sigma;
+  std::vector<double> offsets;  // normalised, > 0 inward
+  for (std::size_t j = 1; j < isos.size(); ++j) offsets.push_back(isos[j] * norm.scale);
+
+  // Anchors over each candidate; a candidate is a phantom when f has the wrong sign at one of them at least.
+  std::vector<Eigen::Vector3d> centres;
+  std::vector<double> targets;
+  struct Phantom {
+    const EmptyComponent* component;
+    Eigen::AlignedBox3d box;  // normalised, enlarged by h
+    double minDistance;       // normalised
+    double sign;              // the surroundings' sign: the anchors' targets'
+  };
+  std::vector<Phantom> phantoms;
+  for (const EmptyComponent& e : empty) {
+    Eigen::AlignedBox3d box(norm.scale * (e.box.min() - norm.centre), norm.scale * (e.box.max() - norm.centre));
+    box.min().array() -= h;
+    box.max().array() += h;
+    detail::AnchorOptions o;
+    o.spacing = h;
+    o.minDistance = options.minDistanceFraction * e.nearestInputPoint * norm.scale;
+    o.maxDistance = 0.0;
+    o.offsets = offsets;
+    o.offsetClearance = sigma / 2.0;
+    o.maxCells = std::size_t{1} << 21;
+    const detail::Anchors a = detail::levelAnchors(box, u, inward, winding.areas(), index, winding, Points(0, 3), o);
+    if (a.positions.rows() == 0) continue;
+    const Eigen::VectorXd f = evaluator.evaluateNormalized(a.positions);
+    std::size_t wrong = 0;
+    double sum = 0.0;
+    for (Eigen::Index i = 0; i < f.size(); ++i) {
+      wrong += (f[i] > 0.0) != (a.targets[i] > 0.0) ? 1 : 0;
+      sum += a.targets[i];
+    }
+    if (wrong == 0) {
+      ++rep.notPhantom;
+      continue;
+    }
+    for (Eigen::Index i = 0; i < a.positions.rows(); ++i) {
+      centres.emplace_back(a.positions.row(i).transpose());
+      targets.push_back(a.targets[i]);
+    }
+    phantoms.push_back(Phantom{&e, box, o.minDistance, sum > 0.0 ? 1.0 : -1.0});
+  }
+  if (phantoms.empty()) return finish();
+  std::vector<Eigen::Vector3d> anchorsNow = std::move(centres);
+  std::vector<double> targetsNow = std::move(targets);
+
+  // Up to three rounds: a node of the check (b) below where f keeps the phantom's sign becomes an anchor of
+  // the next round (the grid's anchors skip candidates whose nearest samples' planes contradict the winding
+  // number, and a pocket of the phantom can survive between them: armadillo_43k's foot).
+  constexpr int kRounds = 3;
+  Points c;
+  std::size_t anchorCount = 0;
+  std::optional<ImplicitField> repaired;
+  std::unique_ptr<FieldEvaluator> after;
+  for (int round = 0;; ++round) {
+    anchorCount = anchorsNow.size();
+    std::vector<Eigen::Vector3d> all = anchorsNow;
+    // The points that keep f: input points near the anchors, their offset companions and off-surface points
+    // on both sides (σ_M/10, as the fit's), unless within 1% of σ_M of an earlier centre.
+    const NeighborLists near = index.radiusSearchUnsorted(stack(anchorsNow), options.keepRadius * sigma);
+    std::vector<Index> kept(near.indices);
+    std::sort(kept.begin(), kept.end());
+    kept.erase(std::unique(kept.begin(), kept.end()), kept.end());
+    for (const Index i : kept) {
+      const Eigen::Vector3d p = u.row(i).transpose(), n = inward.row(i).transpose();
+      all.push_back(p);
+      for (const double d : offsets) all.push_back(p + d * n);
+      if (n.squaredNorm() > 0.0) {
+        all.push_back(p + 0.1 * sigma * n);
+        all.push_back(p - 0.1 * sigma * n);
+      }
+    }
+    if (all.size() > options.maxCentres) {
+      rep.refused = std::to_string(all.size()) + " correction centres (more than " + std::to_string(options.maxCentres) + ")";
+      return finish();
+    }
+    {
+      const Points stacked = stack(all);
+      const NeighborLists close = NeighborIndex(stacked).radiusSearchUnsorted(stacked, 1e-2 * sigma);
+      std::vector<Eigen::Vector3d> distinct(all.begin(), all.begin() + static_cast<std::ptrdiff_t>(anchorCount));
+      for (std::size_t i = anchorCount; i < all.size(); ++i) {
+        bool earlier = false;
+        for (auto k = close.offsets[i]; k < close.offsets[i + 1]; ++k) {
+          earlier = earlier || static_cast<std::size_t>(close.indices[static_cast<std::size_t>(k)]) < i;
+        }
+        if (!earlier) distinct.push_back(all[i]);
+      }
+      c = stack(distinct);
+    }
+    const auto nc = c.rows();
+
+    // The correction g: g = target − f at the anchors, 0 at the keep points; Φ w = g (Wendland, support σ_M).
+    const Eigen::VectorXd fc = evaluator.evaluateNormalized(c);
+    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(nc);
+    for (std::size_t i = 0; i < anchorCount; ++i) {
+      rhs[static_cast<Eigen::Index>(i)] = targetsNow[i] - fc[static_cast<Eigen::Index>(i)];
+    }
+    const CsrMatrix a = assembleWendland(c, sigma);
+    std::vector<Eigen::Triplet<double>> entries;
+    entries.reserve(a.nonZeros());
+    for (Index r = 0; r < a.rows; ++r) {
+      for (Index k = a.rowPtr[static_cast<std::size_t>(r)]; k < a.rowPtr[static_cast<std::size_t>(r) + 1]; ++k) {
+        entries.emplace_back(r, a.colIdx[static_cast<std::size_t>(k)], a.values[static_cast<std::size_t>(k)]);
+      }
+    }
+    Eigen::SparseMatrix<double> m(nc, nc);
+    m.setFromTriplets(entries.begin(), entries.end());
+    const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(m);
+    const Eigen::VectorXd w = ldlt.info() == Eigen::Success ? Eigen::VectorXd(ldlt.solve(rhs)) : Eigen::VectorXd();
+    if (w.size() != nc || !w.allFinite() || (m * w - rhs).norm() > 1e-6 * std::max(1.0, rhs.norm())) {
+      rep.refused = "the correction's system could not be solved";
+      return finish();
+    }
+    std::vector<FieldLevel> levels = field.levels();
+    FieldLevel& finest = levels.back();
+    Points grown(finest.centres.rows() + nc, 3);
+    grown << finest.centres, c;
+    Eigen::VectorXd weights(finest.weights.size() + nc);
+    weights << finest.weights, w;
+    finest.centres = std::move(grown);
+    finest.weights = std::move(weights);
+    repaired.emplace(field.normalization(), field.f0(), std::move(levels), field.offsets(), field.bounds());
+    after = std::make_unique<FieldEvaluator>(device, *repaired, precision);
+
+    // Checks. (a) Every anchor's sign holds.
+    const Eigen::VectorXd fa = after->evaluateNormalized(c.topRows(static_cast<Eigen::Index>(anchorCount)));
+    for (std::size_t i = 0; i < anchorCount; ++i) {
+      if ((fa[static_cast<Eigen::Index>(i)] > 0.0) != (targetsNow[i] > 0.0)) {
+        rep.refused = "f does not take the anchors' signs";
+        return finish();
+      }
+    }
+    // (b) f has the surroundings' sign on a grid of h/2 over each phantom, at the nodes on their side by the
+    // winding number (as the anchors are classified) and away from the samples: the box also holds solid
+    // and surface beside the phantom.
+    std::vector<Eigen::Vector3d> wrong;
+    std::vector<double> wrongSign;
+    for (const Phantom& p : phantoms) {
+      const std::vector<Eigen::Vector3d> nodes = gridNodes(p.box, h / 2.0, std::size_t{1} << 21);
+      if (nodes.empty()) {
+        rep.refused = "a phantom's box is too large to check";
+        return finish();
+      }
+      const Points q = stack(nodes);
+      const NeighborLists nearest = index.knnSearch(q, 1);
+      const Eigen::VectorXd f = after->evaluateNormalized(q);
+      const Eigen::VectorXd wn = winding.evaluate(q);
+      for (Eigen::Index i = 0; i < q.rows(); ++i) {
+        const double d = nearest.distances[static_cast<std::size_t>(nearest.offsets[static_cast<std::size_t>(i)])];
+        const bool surroundings = p.sign < 0.0 ? wn[i] < 0.25 : wn[i] > 0.75;
+        if (surroundings && d >= p.minDistance && f[i] * p.sign <= 0.0) {
+          wrong.push_back(nodes[static_cast<std::size_t>(i)]);
+          wrongSign.push_back(p.sign);
+        }
+      }
+    }
+    rep.rounds = round + 1;
+    if (wrong.empty()) break;
+    if (round + 1 == kRounds) {
+      rep.refused = "f keeps the phantom's sign at " + std::to_string(wrong.size()) + " nodes between the anchors";
+      return finish();
+    }
+    const Points q = stack(wrong);
+    const Eigen::VectorXd d = detail::diskSoupDistance(q, u, inward, winding.areas(), index);
+    for (std::size_t i = 0; i < wrong.size(); ++i) {
+      anchorsNow.push_back(wrong[i]);
+      targetsNow.push_back(wrongSign[i] * std::min(d[static_cast<Eigen::Index>(i)], 1.0));
+    }
+  }
+  std::vector<Index> removed;
+  for (const Phantom& p : phantoms) {
+    removed.insert(removed.end(), p.component->faceList.begin(), p.component->faceList.end());
+    rep.repairedFaces += p.component->faces;
+  }
+  std::sort(removed.begin(), removed.end());
+  out.removedFaces.assign(meshes.size(), {});
+  out.removedFaces[0] = removed;
+  // An offset's components inside a phantom: a bump above δ_j holds a δ_j component too. One whose vertices
+  // all lie in a phantom's box, where f − δ_j now has the surroundings' sign at every vertex, goes with it.
+  for (std::size_t j = 1; j < meshes.size(); ++j) {
+    const Mesh& mesh = meshes[j];
+    if (mesh.faces.rows() == 0) continue;
+    std::size_t count = 0;
+    const std::vector<Index> labels = faceComponents(mesh, &count);
+    const Points un = normalised(mesh.vertices, norm);
+    std::vector<int> inside(count, -1);  // the phantom holding every vertex so far; −2: none does
+    for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
+      int& holder = inside[static_cast<std::size_t>(labels[static_cast<std::size_t>(f)])];
+      for (int k = 0; k < 3 && holder != -2; ++k) {
+        const Eigen::Vector3d x = un.row(mesh.faces(f, k)).transpose();
+        if (holder >= 0 && phantoms[static_cast<std::size_t>(holder)].box.contains(x)) continue;
+        holder = -2;
+        for (std::size_t i = 0; i < phantoms.size(); ++i) {
+          if (phantoms[i].box.contains(x)) holder = static_cast<int>(i);
+        }
+      }
+    }
+    std::vector<Index> rows;
+    std::vector<char> seen(static_cast<std::size_t>(mesh.vertices.rows()), 0);
+    for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
+      if (inside[static_cast<std::size_t>(labels[static_cast<std::size_t>(f)])] < 0) continue;
+      for (int k = 0; k < 3; ++k) {
+        const Index v = mesh.faces(f, k);
+        if (!seen[static_cast<std::size_t>(v)]) rows.push_back(v);
+        seen[static_cast<std::size_t>(v)] = 1;
+      }
+    }
+    if (rows.empty()) continue;
+    Points q(static_cast<Eigen::Index>(rows.size()), 3);
+    for (std::size_t i = 0; i < rows.size(); ++i) q.row(static_cast<Eigen::Index>(i)) = mesh.vertices.row(rows[i]);
+    const Eigen::VectorXd f = after->evaluate(q).values;
+    std::vector<char> gone(count, 1);
+    for (Eigen::Index f2 = 0; f2 < mesh.faces.rows(); ++f2) {
+      const auto l = static_cast<std::size_t>(labels[static_cast<std::size_t>(f2)]);
+      if (inside[l] < 0) continue;
+      const double sign = phantoms[static_cast<std::size_t>(inside[l])].sign;
+      for (int k = 0; k < 3; ++k) {
+        const auto at = std::lower_bound(rows.begin(), rows.end(), mesh.faces(f2, k));
+        const auto i = static_cast<Eigen::Index>(at - rows.begin());
+        if (!((f[i] - isos[j]) * sign > 0.0)) gone[l] = 0;
+      }
+    }
+    for (Eigen::Index f2 = 0; f2 < mesh.faces.rows(); ++f2) {
+      const auto l = static_cast<std::size_t>(labels[static_cast<std::size_t>(f2)]);
+      if (inside[l] >= 0 && gone[l]) out.removedFaces[j].push_back(static_cast<Index>(f2));
+    }
+    rep.offsetFaces += out.removedFaces[j].size();
+  }
+  // (c) The other meshes' vertices within σ_M of a correction centre follow their level sets (Newton steps
+  // along ∇f): the anchors' targets are the disk-soup distance, so the real surface beside a phantom moves
+  // a little (wheel_29k: 0.001 of the side). The move is bounded, and no face around a moved vertex may
+  // turn by more than 60 degrees.
+  double side = 0.0;
+  if (points.rows() > 0) side = (points.colwise().maxCoeff() - points.colwise().minCoeff()).maxCoeff();
+  const NeighborIndex correction(c);
+  out.moves.resize(meshes.size());
+  for (std::size_t j = 0; j < meshes.size(); ++j) {
+    const Mesh& mesh = meshes[j];
+    std::vector<char> skip(static_cast<std::size_t>(mesh.vertices.rows()), 0);
+    for (const Index f : out.removedFaces[j]) {
+      for (int k = 0; k < 3; ++k) skip[static_cast<std::size_t>(mesh.faces(f, k))] = 1;
+    }
+    const NeighborLists near = correction.nearestWithin(normalised(mesh.vertices, norm), sigma);
+    std::vector<Index> rows;
+    for (std::size_t v = 0; v < skip.size(); ++v) {
+      if (!skip[v] && near.count(v) > 0) rows.push_back(static_cast<Index>(v));
+    }
+    if (rows.empty()) continue;
+    Points q(static_cast<Eigen::Index>(rows.size()), 3);
+    for (std::size_t i = 0; i < rows.size(); ++i) q.row(static_cast<Eigen::Index>(i)) = mesh.vertices.row(rows[i]);
+    const Points before = q;
+    FieldSamples now;
+    for (int step = 0; step < 4; ++step) {
+      now = after->evaluate(q, FieldDerivatives::Gradient);
+      if (step == 3) break;
+      for (Eigen::Index i = 0; i < q.rows(); ++i) {
+        const double g2 = now.gradients.row(i).squaredNorm();
+        if (g2 > 0.0) q.row(i) -= (now.values[i] - isos[j]) / g2 * now.gradients.row(i);
+      }
+    }
+    for (Eigen::Index i = 0; i < q.rows(); ++i) {
+      const double g = now.gradients.row(i).norm();
+      rep.maxDeviation = std::max(rep.maxDeviation, g > 0.0 ? std::abs(now.values[i] - isos[j]) / g : HUGE_VAL);
+      rep.maxChange = std::max(rep.maxChange, (q.row(i) - before.row(i)).norm());
+    }
+    // The faces around the moved vertices keep their orientation.
+    std::vector<Index> slot(skip.size(), -1);
+    for (std::size_t i = 0; i < rows.size(); ++i) slot[static_cast<std::size_t>(rows[i])] = static_cast<Index>(i);
+    const auto corner = [&](Eigen::Index f, int k, bool moved) -> Eigen::Vector3d {
+      const Index v = mesh.faces(f, k);
+      const Index i = moved ? slot[static_cast<std::size_t>(v)] : -1;
+      return i >= 0 ? Eigen::Vector3d(q.row(i).transpose()) : Eigen::Vector3d(mesh.vertices.row(v).transpose());
+    };
+    for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
+      bool touched = false;
+      for (int k = 0; k < 3; ++k) touched = touched || slot[static_cast<std::size_t>(mesh.faces(f, k))] >= 0;
+      if (!touched) continue;
+      const Eigen::Vector3d n0 = (corner(f, 1, false) - corner(f, 0, false)).cross(corner(f, 2, false) - corner(f, 0, false));
+      const Eigen::Vector3d n1 = (corner(f, 1, true) - corner(f, 0, true)).cross(corner(f, 2, true) - corner(f, 0, true));
+      if (!(n0.norm() > 0.0) || !(n1.dot(n0) >= 0.5 * n1.norm() * n0.norm())) {
+        rep.refused = "a face of surface " + std::to_string(j) + " beside the correction would turn";
+        return finish();
+      }
+    }
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      out.moves[j].emplace_back(rows[i], Eigen::Vector3d(q.row(static_cast<Eigen::Index>(i)).transpose()));
+    }
+  }
+  if (!(rep.maxChange <= options.maxChange * side)) {
+    rep.refused = "the correction moves another part of the meshes' level sets by " + std::to_string(rep.maxChange) +
+                  " (more than " + std::to_string(options.maxChange * side) + ")";
+    out.moves.clear();
+    return finish();
+  }
+  rep.repaired = phantoms.size();
+  rep.anchors = anchorCount;
+  rep.keepPoints = static_cast<std::size_t>(c.rows()) - anchorCount;
+  out.field = std::move(*repaired);
+  return finish();
+}
+
+}  // namespace duplexfit

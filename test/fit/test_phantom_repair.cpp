@@ -1,0 +1,136 @@
+// The phantom repair (repairPhantoms, docs/method.md "Phantom repair"): a blob of f > 0 planted in empty
+// space beside a fitted sphere is a zero-level component without input points; the repair removes it from
+// the field (f < 0 there, as the exact signed distance says) and names its faces, while f at the samples
+// and the sphere's mesh stay where they were. In the fit suite (label device).
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "duplexfit/field.hpp"
+#include "duplexfit/fit.hpp"
+#include "duplexfit/phantom_repair.hpp"
+#include "duplexfit/self_check.hpp"
+#include "duplexfit/surfaces.hpp"
+#include "shapes.hpp"
+#include "test_device.hpp"
+
+using namespace duplexfit;
+
+namespace {
+
+const Device& repairDevice() {
+  static const Device ref = Device::reference();
+  const Device* d = testing::openclTestDevice();
+  return d != nullptr ? *d : ref;
+}
+
+/// n points on the sphere of radius r about the origin (Fibonacci lattice) with outward normals.
+PointSet sphere(int n, double r) {
+  Points p(n, 3), nn(n, 3);
+  const double golden = M_PI * (3.0 - std::sqrt(5.0));
+  for (int i = 0; i < n; ++i) {
+    const double z = 1.0 - 2.0 * (i + 0.5) / n, s = std::sqrt(1.0 - z * z), t = golden * i;
+    nn.row(i) << s * std::cos(t), s * std::sin(t), z;
+    p.row(i) = r * nn.row(i);
+  }
+  return PointSet(p, nn);
+}
+
+}  // namespace
+
+TEST_SUITE("fit") {
+  TEST_CASE("phantom repair: a blob planted beside a sphere leaves the field and the mesh; the sphere stays") {
+    const double radius = 0.3, delta = 0.03;
+    const PointSet cloud = sphere(3000, radius);
+    FitOptions fo;
+    fo.offsets = {delta};
+    const FitResult fitted = fit(repairDevice(), cloud, fo);
+    const ImplicitField& clean = fitted.field;
+    const Normalization& norm = clean.normalization();
+    const double sigma = clean.levels().back().sigma / norm.scale;  // σ_M, input units
+    MESSAGE("sigma_M " << sigma);
+    REQUIRE(sigma < 0.1);
+
+    // The blob: one centre of the finest level 2σ_M outside the sphere, lifting f there to +σ_M (a ball of about σ_M/4).
+    // Along the box diagonal, so that it lies inside the cloud's box (which the grid covers).
+    const Eigen::Vector3d blob = (radius + 2.0 * sigma) * Eigen::Vector3d(1.0, 1.0, 1.0).normalized();
+    const double before = clean.value(blob);
+    CHECK(before < 0.0);
+    std::vector<FieldLevel> levels = clean.levels();
+    FieldLevel& finest = levels.back();
+    finest.centres.conservativeResize(finest.centres.rows() + 1, 3);
+    finest.centres.row(finest.centres.rows() - 1) = norm.scale * (blob - norm.centre).transpose();
+    finest.weights.conservativeResize(finest.weights.size() + 1);
+    finest.weights[finest.weights.size() - 1] = (sigma - before) * norm.scale;
+    const ImplicitField planted(norm, clean.f0(), levels, clean.offsets(), clean.bounds());
+    REQUIRE(planted.value(blob) > 0.0);
+
+    const std::vector<double> isos{0.0, delta};
+    const SurfaceResult meshes = extractSurfaces(repairDevice(), planted, isos);
+    std::size_t components = 0;
+    const std::vector<Index> labels = faceComponents(meshes.meshes[0], &components);
+    REQUIRE(components == 2);
+    const std::vector<EmptyComponent> empty = emptyZeroLevelComponents(meshes.meshes[0], cloud.positions(), 1.0);
+    REQUIRE(empty.size() == 1);
+    CHECK(empty[0].box.contains(blob));
+
+    const FieldEvaluator evaluator(repairDevice(), planted);
+    const PhantomRepairResult r = repairPhantoms(repairDevice(), Precision::Float, planted, evaluator, cloud.positions(),
+                                                 cloud.normals(), meshes.meshes, isos, empty);
+    const PhantomRepairReport& rep = r.report;
+    MESSAGE("repair: " << rep.anchors << " anchors, " << rep.keepPoints << " keep points, " << rep.rounds
+                       << " round(s), moved " << rep.maxChange << ", deviation " << rep.maxDeviation << ", refused '"
+                       << rep.refused << "'");
+    CHECK(rep.candidates == 1);
+    CHECK(rep.notPhantom == 0);
+    REQUIRE(rep.repaired == 1);
+    REQUIRE(r.field.has_value());
+    CHECK(rep.refused.empty());
+    // The faces named are exactly the blob's component.
+    std::size_t blobFaces = 0;
+    for (const Index l : labels) blobFaces += l == static_cast<Index>(empty[0].component) ? 1 : 0;
+    REQUIRE(r.removedFaces.size() == 2);
+    CHECK(r.removedFaces[0].size() == blobFaces);
+    // The blob (f up to +σ_M) holds a component of the δ level too; it goes with it.
+    std::size_t offsetComponents = 0;
+    faceComponents(meshes.meshes[1], &offsetComponents);
+    CHECK(offsetComponents == 2);
+    CHECK(!r.removedFaces[1].empty());
+    CHECK(rep.offsetFaces == r.removedFaces[1].size());
+    CHECK(rep.repairedFaces == blobFaces);
+
+    // Against the truth: f < 0 over the blob (the exact signed distance there is −2σ_M .. −σ_M), and within
+    // a fifth of it at the blob's centre.
+    const ImplicitField& fixed = *r.field;
+    const double after = fixed.value(blob);
+    MESSAGE("f at the blob: planted " << planted.value(blob) << ", repaired " << after << ", exact " << -2.0 * sigma);
+    CHECK(after < 0.0);
+    CHECK(std::abs(after + 2.0 * sigma) <= 0.2 * 2.0 * sigma);
+    for (const double dz : {-0.5, -0.25, 0.25, 0.5}) {
+      for (const double dx : {-0.5, 0.0, 0.5}) {
+        CHECK(fixed.value(blob + sigma * Eigen::Vector3d(dx, dz, 0.0)) < 0.0);
+      }
+    }
+    // f at the samples unchanged; the moved vertices stay within the bound and end on their level sets.
+    const Eigen::VectorXd f0 = planted.evaluate(repairDevice(), cloud.positions()).values;
+    const Eigen::VectorXd f1 = fixed.evaluate(repairDevice(), cloud.positions()).values;
+    CHECK((f1 - f0).cwiseAbs().maxCoeff() <= 1e-5);
+    CHECK(rep.maxChange <= 5e-3 * 0.6);
+    CHECK(rep.maxDeviation <= 1e-4);
+    // The moved vertices stay on the exact sphere (and its offset), as near as the extraction put them.
+    double worst = 0.0;
+    for (std::size_t j = 0; j < r.moves.size(); ++j) {
+      for (const auto& [v, x] : r.moves[j]) {
+        worst = std::max(worst, std::abs(x.norm() - (j == 0 ? radius : radius - delta)));
+        (void)v;
+      }
+    }
+    CHECK(worst <= 2e-3);
+
+    // The fitted field without the blob: no candidate, nothing to repair.
+    const SurfaceResult plain = extractSurfaces(repairDevice(), clean, isos);
+    CHECK(emptyZeroLevelComponents(plain.meshes[0], cloud.positions(), 1.0).empty());
+  }
+}
