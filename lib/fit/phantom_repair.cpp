@@ -123,10 +123,13 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
     const detail::Anchors a = detail::levelAnchors(box, u, inward, winding.areas(), index, winding, Points(0, 3), o);
     if (a.positions.rows() == 0) continue;
     const Eigen::VectorXd f = evaluator.evaluateNormalized(a.positions);
+    // The surroundings' sign: that of the targets where f disagrees (the box holds solid beside the
+    // phantom too, whose anchors agree).
     std::size_t wrong = 0;
     double sum = 0.0;
     for (Eigen::Index i = 0; i < f.size(); ++i) {
-      wrong += (f[i] > 0.0) != (a.targets[i] > 0.0) ? 1 : 0;
+      if ((f[i] > 0.0) == (a.targets[i] > 0.0)) continue;
+      ++wrong;
       sum += a.targets[i];
     }
     if (wrong == 0) {
@@ -267,9 +270,10 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
     }
   }
   std::vector<Index> removed;
+  std::size_t repairedFaces = 0, offsetFaces = 0;  // reported when the repair is kept
   for (const Phantom& p : phantoms) {
     removed.insert(removed.end(), p.component->faceList.begin(), p.component->faceList.end());
-    rep.repairedFaces += p.component->faces;
+    repairedFaces += p.component->faces;
   }
   std::sort(removed.begin(), removed.end());
   out.removedFaces.assign(meshes.size(), {});
@@ -323,7 +327,7 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
       const auto l = static_cast<std::size_t>(labels[static_cast<std::size_t>(f2)]);
       if (inside[l] >= 0 && gone[l]) out.removedFaces[j].push_back(static_cast<Index>(f2));
     }
-    rep.offsetFaces += out.removedFaces[j].size();
+    offsetFaces += out.removedFaces[j].size();
   }
   // (c) The other meshes' vertices within σ_M of a correction centre follow their level sets (Newton steps
   // along ∇f): the anchors' targets are the disk-soup distance, so the real surface beside a phantom moves
@@ -392,6 +396,8 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
     return finish();
   }
   rep.repaired = phantoms.size();
+  rep.repairedFaces = repairedFaces;
+  rep.offsetFaces = offsetFaces;
   rep.anchors = anchorCount;
   rep.keepPoints = static_cast<std::size_t>(c.rows()) - anchorCount;
   out.field = std::move(*repaired);
