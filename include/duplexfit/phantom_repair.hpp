@@ -49,6 +49,7 @@ struct PhantomRepairReport {
   std::size_t keepPoints = 0;    ///< correction centres that keep f where it was
   double maxChange = 0.0;        ///< the largest move of the other meshes' vertices near the correction (input units)
   double maxDeviation = 0.0;     ///< their largest |f − iso|/|∇f| after it (input units)
+  int iterations = 0;            ///< CG iterations over the rounds
   int rounds = 0;                ///< solves (a node where f kept the phantom's sign is an anchor of the next)
   std::string refused;           ///< empty, or why the field was left as it was
   double seconds = 0.0;
