@@ -106,7 +106,7 @@ struct SelfCheckReport {
   std::vector<ComponentIssue> issues;     ///< by surface, then component label
   std::vector<SurfaceSelfCheck> surfaces;  ///< one per mesh
   /// With SelfCheckOptions::candidateEdges: the zero-level components without input points within that
-  /// tolerance, with their faces (label order).
+  /// tolerance (within the check's own where that is the smaller), with their faces (label order).
   std::vector<EmptyComponent> emptyComponents;
   double pointTolerance = 0.0;            ///< the tolerance used (input units; 0 when not checked)
   bool pointsChecked = false;             ///< input points were given, so NoInputPoints was tested

@@ -314,6 +314,9 @@ SelfCheckReport selfCheck(const std::vector<Mesh>& meshes, const std::vector<dou
   if (!(std::isfinite(options.pointToleranceEdges) && options.pointToleranceEdges > 0.0)) {
     throw InvalidArgument("self-check: pointToleranceEdges must be finite and > 0");
   }
+  if (!(std::isfinite(options.candidateEdges) && options.candidateEdges >= 0.0)) {
+    throw InvalidArgument("self-check: candidateEdges must be finite and >= 0");
+  }
   checkFraction(options.minAreaFraction);
 
   SelfCheckReport r;

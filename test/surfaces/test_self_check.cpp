@@ -97,6 +97,40 @@ TEST_CASE("self-check: a component within the tolerance of points nearer to anot
   CHECK(r.issues[0].nearestInputPoint == doctest::Approx(0.02).epsilon(1e-6));
 }
 
+TEST_CASE("self-check: candidateEdges lists the components without points within fewer edges, issues or not") {
+  // The tiny sphere of the case above with its one point at 0.03 from it (the unit sphere's own points are
+  // farther): within the check's two mean edges (about 0.16), beyond one edge's worth of 0.02.
+  const Mesh surface = icosphere(4, 1.0);
+  const Mesh planted = icosphere(2, 0.1, Eigen::RowVector3d(3.0, 0.0, 0.0));
+  const std::vector<Mesh> meshes = {merged(surface, planted)};
+  Points points(2001, 3);
+  points << unitSpherePoints(), Eigen::RowVector3d(3.13, 0.0, 0.0);
+  SelfCheckOptions o;
+  const SelfCheckReport plain = selfCheck(meshes, {0.0}, points, o);
+  CHECK(plain.ok());
+  CHECK(plain.emptyComponents.empty());  // not asked
+  // One edge of the unit sphere's mesh is about 0.08, its mean with the small sphere's about the same: a
+  // quarter of an edge keeps the point (0.03 off) out.
+  o.candidateEdges = 0.25;
+  const SelfCheckReport loose = selfCheck(meshes, {0.0}, points, o);
+  CHECK(loose.ok());  // the same issues: none
+  REQUIRE(loose.emptyComponents.size() == 1);
+  const EmptyComponent& e = loose.emptyComponents[0];
+  CHECK(e.component == 1);
+  CHECK(e.faces == static_cast<std::size_t>(planted.faces.rows()));
+  CHECK(e.faceList.size() == e.faces);
+  CHECK(e.vertexList.size() == static_cast<std::size_t>(planted.vertices.rows()));
+  CHECK(e.faceList.front() == surface.faces.rows());  // the planted sphere's faces come second
+  CHECK(e.nearestInputPoint == doctest::Approx(0.03).epsilon(1e-6));
+  // The free function answers alike; a bad tolerance is an error.
+  const std::vector<EmptyComponent> direct = emptyZeroLevelComponents(meshes[0], points, 0.25);
+  REQUIRE(direct.size() == 1);
+  CHECK(direct[0].faceList == e.faceList);
+  CHECK_THROWS_AS(emptyZeroLevelComponents(meshes[0], points, 0.0), InvalidArgument);
+  o.candidateEdges = -1.0;
+  CHECK_THROWS_AS(selfCheck(meshes, {0.0}, points, o), InvalidArgument);
+}
+
 TEST_CASE("self-check: the point tolerance decides whether a point lands on a component") {
   const std::vector<Mesh> meshes = {icosphere(3, 1.0)};
   Points far = unitSpherePoints(500) * 1.05;  // 0.05 outside (plus the chordal gap inside the facets)
