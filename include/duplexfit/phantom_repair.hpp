@@ -51,7 +51,9 @@ struct PhantomRepairReport {
   double maxDeviation = 0.0;     ///< their largest |f − iso|/|∇f| after it (input units)
   int iterations = 0;            ///< CG iterations over the rounds
   int rounds = 0;                ///< solves (a node where f kept the phantom's sign is an anchor of the next)
-  std::string refused;           ///< empty, or why the field was left as it was
+  std::size_t refusedPhantoms = 0; ///< phantoms left as they were (a check failed at their correction)
+  std::string firstRefusal;      ///< why the first phantom left out was (the others were repaired without it)
+  std::string refused;           ///< empty, or why the field was left as it was (no phantom repaired)
   double seconds = 0.0;
 };
 

@@ -82,7 +82,9 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
   const std::vector<EmptyComponent>& empty = candidates;
   for (const EmptyComponent& e : empty) {
     for (const Index f : e.faceList) {
-      if (f < 0 || f >= meshes[0].faces.rows()) throw InvalidArgument("phantom repair: a candidate's face is not in the mesh");
+      if (f < 0 || f >= meshes[0].faces.rows()) {
+        throw InvalidArgument("phantom repair: a candidate's face is not in the mesh");
+      }
     }
   }
   rep.candidates = empty.size();
@@ -99,13 +101,13 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
   for (std::size_t j = 1; j < isos.size(); ++j) offsets.push_back(isos[j] * norm.scale);
 
   // Anchors over each candidate; a candidate is a phantom when f has the wrong sign at one of them at least.
-  std::vector<Eigen::Vector3d> centres;
-  std::vector<double> targets;
   struct Phantom {
     const EmptyComponent* component;
     Eigen::AlignedBox3d box;  // normalised, enlarged by h
     double minDistance;       // normalised
     double sign;              // the surroundings' sign: the anchors' targets'
+    std::vector<Eigen::Vector3d> anchors;
+    std::vector<double> targets;
   };
   std::vector<Phantom> phantoms;
   for (const EmptyComponent& e : empty) {
@@ -135,209 +137,250 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
       ++rep.notPhantom;
       continue;
     }
+    Phantom p{&e, box, o.minDistance, sum > 0.0 ? 1.0 : -1.0, {}, {}};
     for (Eigen::Index i = 0; i < a.positions.rows(); ++i) {
-      centres.emplace_back(a.positions.row(i).transpose());
-      targets.push_back(a.targets[i]);
+      p.anchors.emplace_back(a.positions.row(i).transpose());
+      p.targets.push_back(a.targets[i]);
     }
-    phantoms.push_back(Phantom{&e, box, o.minDistance, sum > 0.0 ? 1.0 : -1.0});
+    phantoms.push_back(std::move(p));
   }
   if (phantoms.empty()) return finish();
-  std::vector<Eigen::Vector3d> anchorsNow = std::move(centres);
-  std::vector<double> targetsNow = std::move(targets);
+  double side = 0.0;
+  if (points.rows() > 0) side = (points.colwise().maxCoeff() - points.colwise().minCoeff()).maxCoeff();
 
-  // Up to three rounds: a node of the check (b) below where f keeps the phantom's sign becomes an anchor of
-  // the next round (the grid's anchors skip candidates whose nearest samples' planes contradict the winding
-  // number, and a pocket of the phantom can survive between them: armadillo_43k's foot).
-  constexpr int kRounds = 3;
+  // An attempt repairs the active phantoms together; a failed check that points at one phantom (`blame`)
+  // drops it and the others are tried again without it (a noisy bubble whose correction would move the
+  // surface beside it must not keep a real phantom elsewhere). A failure that points at none refuses all.
+  std::vector<char> active(phantoms.size(), 1);
+  std::size_t activeCount = phantoms.size();
+  int blame = -1;
+  std::string why;
   Points c;
   std::size_t anchorCount = 0;
   std::optional<ImplicitField> repaired;
   std::unique_ptr<FieldEvaluator> after;
-  for (int round = 0;; ++round) {
-    anchorCount = anchorsNow.size();
-    std::vector<Eigen::Vector3d> all = anchorsNow;
-    // The points that keep f: input points near the anchors, their offset companions and off-surface points
-    // on both sides (σ_M/10, as the fit's), unless within 1% of σ_M of an earlier centre.
-    const NeighborLists near = index.radiusSearchUnsorted(stack(anchorsNow), options.keepRadius * sigma);
-    std::vector<Index> kept(near.indices);
-    std::sort(kept.begin(), kept.end());
-    kept.erase(std::unique(kept.begin(), kept.end()), kept.end());
-    for (const Index i : kept) {
-      const Eigen::Vector3d p = u.row(i).transpose(), n = inward.row(i).transpose();
-      all.push_back(p);
-      for (const double d : offsets) all.push_back(p + d * n);
-      if (n.squaredNorm() > 0.0) {
-        all.push_back(p + 0.1 * sigma * n);
-        all.push_back(p - 0.1 * sigma * n);
-      }
-    }
-    if (all.size() > options.maxCentres) {
-      rep.refused = std::to_string(all.size()) + " correction centres (more than " + std::to_string(options.maxCentres) + ")";
-      return finish();
-    }
-    {
-      const Points stacked = stack(all);
-      const NeighborLists close = NeighborIndex(stacked).radiusSearchUnsorted(stacked, 1e-2 * sigma);
-      std::vector<Eigen::Vector3d> distinct(all.begin(), all.begin() + static_cast<std::ptrdiff_t>(anchorCount));
-      for (std::size_t i = anchorCount; i < all.size(); ++i) {
-        bool earlier = false;
-        for (auto k = close.offsets[i]; k < close.offsets[i + 1]; ++k) {
-          earlier = earlier || static_cast<std::size_t>(close.indices[static_cast<std::size_t>(k)]) < i;
-        }
-        if (!earlier) distinct.push_back(all[i]);
-      }
-      c = stack(distinct);
-    }
-    const auto nc = c.rows();
-
-    // The correction g: g = target − f at the anchors, 0 at the keep points; Φ w = g (Wendland, support σ_M).
-    const Eigen::VectorXd fc = evaluator.evaluateNormalized(c);
-    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(nc);
-    for (std::size_t i = 0; i < anchorCount; ++i) {
-      rhs[static_cast<Eigen::Index>(i)] = targetsNow[i] - fc[static_cast<Eigen::Index>(i)];
-    }
-    // Conjugate gradients on the reference path in double with the fit's FSAI preconditioner: a few hundred
-    // to a few thousand unknowns with some 200 couplings a row (anchors σ_M/4 apart), where a sparse LDLT's
-    // fill-in took 0.3 s a round on armadillo_43k.
-    const CsrMatrix a = assembleWendland(c, sigma);
-    const Device host = Device::reference();
-    const DeviceCsr da = DeviceCsr::upload(host, a, Precision::Double);
-    const FsaiPreconditioner fsai(da, a);
-    SolverOptions so;
-    so.relativeTolerance = 1e-10;
-    so.maxIterations = 5000;
-    so.progressInterval = 0;
-    DeviceVector dw = DeviceVector::upload(host, Eigen::VectorXd::Zero(nc), Precision::Double);
-    const SolveStats solved = solveCg(da, DeviceVector::upload(host, rhs, Precision::Double), dw, so, &fsai);
-    const Eigen::VectorXd w = solved.converged ? dw.download() : Eigen::VectorXd();
-    rep.iterations += solved.iterations;
-    if (w.size() != nc || !w.allFinite() || (a.multiply(w) - rhs).norm() > 1e-6 * std::max(1.0, rhs.norm())) {
-      rep.refused = "the correction's system could not be solved";
-      return finish();
-    }
-    std::vector<FieldLevel> levels = field.levels();
-    FieldLevel& finest = levels.back();
-    Points grown(finest.centres.rows() + nc, 3);
-    grown << finest.centres, c;
-    Eigen::VectorXd weights(finest.weights.size() + nc);
-    weights << finest.weights, w;
-    finest.centres = std::move(grown);
-    finest.weights = std::move(weights);
-    repaired.emplace(field.normalization(), field.f0(), std::move(levels), field.offsets(), field.bounds());
-    after = std::make_unique<FieldEvaluator>(device, *repaired, precision);
-
-    // Checks. (a) Every anchor's sign holds.
-    const Eigen::VectorXd fa = after->evaluateNormalized(c.topRows(static_cast<Eigen::Index>(anchorCount)));
-    for (std::size_t i = 0; i < anchorCount; ++i) {
-      if ((fa[static_cast<Eigen::Index>(i)] > 0.0) != (targetsNow[i] > 0.0)) {
-        rep.refused = "f does not take the anchors' signs";
-        return finish();
-      }
-    }
-    // (b) f has the surroundings' sign on a grid of h/2 over each phantom, at the nodes on their side by the
-    // winding number (as the anchors are classified) and away from the samples: the box also holds solid
-    // and surface beside the phantom.
-    std::vector<Eigen::Vector3d> wrong;
-    std::vector<double> wrongSign;
-    for (const Phantom& p : phantoms) {
-      const std::vector<Eigen::Vector3d> nodes = gridNodes(p.box, h / 2.0, std::size_t{1} << 21);
-      if (nodes.empty()) {
-        rep.refused = "a phantom's box is too large to check";
-        return finish();
-      }
-      const Points q = stack(nodes);
-      const NeighborLists nearest = index.knnSearch(q, 1);
-      const Eigen::VectorXd f = after->evaluateNormalized(q);
-      const Eigen::VectorXd wn = winding.evaluate(q);
-      for (Eigen::Index i = 0; i < q.rows(); ++i) {
-        const double d = nearest.distances[static_cast<std::size_t>(nearest.offsets[static_cast<std::size_t>(i)])];
-        const bool surroundings = p.sign < 0.0 ? wn[i] < 0.25 : wn[i] > 0.75;
-        if (surroundings && d >= p.minDistance && f[i] * p.sign <= 0.0) {
-          wrong.push_back(nodes[static_cast<std::size_t>(i)]);
-          wrongSign.push_back(p.sign);
-        }
-      }
-    }
-    rep.rounds = round + 1;
-    if (wrong.empty()) break;
-    if (round + 1 == kRounds) {
-      rep.refused = "f keeps the phantom's sign at " + std::to_string(wrong.size()) + " nodes between the anchors";
-      return finish();
-    }
-    const Points q = stack(wrong);
-    const Eigen::VectorXd d = detail::diskSoupDistance(q, u, inward, winding.areas(), index);
-    for (std::size_t i = 0; i < wrong.size(); ++i) {
-      anchorsNow.push_back(wrong[i]);
-      targetsNow.push_back(wrongSign[i] * std::min(d[static_cast<Eigen::Index>(i)], 1.0));
-    }
-  }
-  std::vector<Index> removed;
   std::size_t repairedFaces = 0, offsetFaces = 0;  // reported when the repair is kept
-  for (const Phantom& p : phantoms) {
-    removed.insert(removed.end(), p.component->faceList.begin(), p.component->faceList.end());
-    repairedFaces += p.component->faces;
-  }
-  std::sort(removed.begin(), removed.end());
-  out.removedFaces.assign(meshes.size(), {});
-  out.removedFaces[0] = removed;
-  // An offset's components inside a phantom: a bump above δ_j holds a δ_j component too. One whose vertices
-  // all lie in a phantom's box, where f − δ_j now has the surroundings' sign at every vertex, goes with it.
-  for (std::size_t j = 1; j < meshes.size(); ++j) {
-    const Mesh& mesh = meshes[j];
-    if (mesh.faces.rows() == 0) continue;
-    std::size_t count = 0;
-    const std::vector<Index> labels = faceComponents(mesh, &count);
-    const Points un = normalised(mesh.vertices, norm);
-    std::vector<int> inside(count, -1);  // the phantom holding every vertex so far; −2: none does
-    for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
-      int& holder = inside[static_cast<std::size_t>(labels[static_cast<std::size_t>(f)])];
-      for (int k = 0; k < 3 && holder != -2; ++k) {
-        const Eigen::Vector3d x = un.row(mesh.faces(f, k)).transpose();
-        if (holder >= 0 && phantoms[static_cast<std::size_t>(holder)].box.contains(x)) continue;
-        holder = -2;
-        for (std::size_t i = 0; i < phantoms.size(); ++i) {
-          if (phantoms[i].box.contains(x)) holder = static_cast<int>(i);
+  const auto attempt = [&]() -> bool {
+    blame = -1;
+    rep.maxChange = rep.maxDeviation = 0.0;
+    out.moves.clear();
+    out.removedFaces.clear();
+    std::vector<Eigen::Vector3d> anchorsNow;
+    std::vector<double> targetsNow;
+    std::vector<int> owner;  // the phantom of each anchor
+    for (std::size_t k = 0; k < phantoms.size(); ++k) {
+      if (!active[k]) continue;
+      anchorsNow.insert(anchorsNow.end(), phantoms[k].anchors.begin(), phantoms[k].anchors.end());
+      targetsNow.insert(targetsNow.end(), phantoms[k].targets.begin(), phantoms[k].targets.end());
+      owner.insert(owner.end(), phantoms[k].anchors.size(), static_cast<int>(k));
+    }
+    // Up to three rounds: a node of the check (b) below where f keeps the phantom's sign becomes an anchor of
+    // the next round (the grid's anchors skip candidates whose nearest samples' planes contradict the winding
+    // number, and a pocket of the phantom can survive between them: armadillo_43k's foot).
+    constexpr int kRounds = 3;
+    for (int round = 0;; ++round) {
+      anchorCount = anchorsNow.size();
+      std::vector<Eigen::Vector3d> all = anchorsNow;
+      // The points that keep f: input points near the anchors, their offset companions and off-surface points
+      // on both sides (σ_M/10, as the fit's), unless within 1% of σ_M of an earlier centre.
+      const NeighborLists near = index.radiusSearchUnsorted(stack(anchorsNow), options.keepRadius * sigma);
+      std::vector<Index> kept(near.indices);
+      std::sort(kept.begin(), kept.end());
+      kept.erase(std::unique(kept.begin(), kept.end()), kept.end());
+      for (const Index i : kept) {
+        const Eigen::Vector3d p = u.row(i).transpose(), n = inward.row(i).transpose();
+        all.push_back(p);
+        for (const double d : offsets) all.push_back(p + d * n);
+        if (n.squaredNorm() > 0.0) {
+          all.push_back(p + 0.1 * sigma * n);
+          all.push_back(p - 0.1 * sigma * n);
         }
       }
-    }
-    std::vector<Index> rows;
-    std::vector<char> seen(static_cast<std::size_t>(mesh.vertices.rows()), 0);
-    for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
-      if (inside[static_cast<std::size_t>(labels[static_cast<std::size_t>(f)])] < 0) continue;
-      for (int k = 0; k < 3; ++k) {
-        const Index v = mesh.faces(f, k);
-        if (!seen[static_cast<std::size_t>(v)]) rows.push_back(v);
-        seen[static_cast<std::size_t>(v)] = 1;
+      if (all.size() > options.maxCentres) {
+        why = std::to_string(all.size()) + " correction centres (more than " + std::to_string(options.maxCentres) + ")";
+        return false;
+      }
+      {
+        const Points stacked = stack(all);
+        const NeighborLists close = NeighborIndex(stacked).radiusSearchUnsorted(stacked, 1e-2 * sigma);
+        std::vector<Eigen::Vector3d> distinct(all.begin(), all.begin() + static_cast<std::ptrdiff_t>(anchorCount));
+        for (std::size_t i = anchorCount; i < all.size(); ++i) {
+          bool earlier = false;
+          for (auto k = close.offsets[i]; k < close.offsets[i + 1]; ++k) {
+            earlier = earlier || static_cast<std::size_t>(close.indices[static_cast<std::size_t>(k)]) < i;
+          }
+          if (!earlier) distinct.push_back(all[i]);
+        }
+        c = stack(distinct);
+      }
+      const auto nc = c.rows();
+
+      // The correction g: g = target − f at the anchors, 0 at the keep points; Φ w = g (Wendland, support σ_M).
+      const Eigen::VectorXd fc = evaluator.evaluateNormalized(c);
+      Eigen::VectorXd rhs = Eigen::VectorXd::Zero(nc);
+      for (std::size_t i = 0; i < anchorCount; ++i) {
+        rhs[static_cast<Eigen::Index>(i)] = targetsNow[i] - fc[static_cast<Eigen::Index>(i)];
+      }
+      // Conjugate gradients on the reference path in double with the fit's FSAI preconditioner: a few hundred
+      // to a few thousand unknowns with some 200 couplings a row (anchors σ_M/4 apart), where a sparse LDLT's
+      // fill-in took 0.3 s a round on armadillo_43k.
+      const CsrMatrix a = assembleWendland(c, sigma);
+      const Device host = Device::reference();
+      const DeviceCsr da = DeviceCsr::upload(host, a, Precision::Double);
+      const FsaiPreconditioner fsai(da, a);
+      SolverOptions so;
+      so.relativeTolerance = 1e-10;
+      so.maxIterations = 5000;
+      so.progressInterval = 0;
+      DeviceVector dw = DeviceVector::upload(host, Eigen::VectorXd::Zero(nc), Precision::Double);
+      const SolveStats solved = solveCg(da, DeviceVector::upload(host, rhs, Precision::Double), dw, so, &fsai);
+      const Eigen::VectorXd w = solved.converged ? dw.download() : Eigen::VectorXd();
+      rep.iterations += solved.iterations;
+      if (w.size() != nc || !w.allFinite() || (a.multiply(w) - rhs).norm() > 1e-6 * std::max(1.0, rhs.norm())) {
+        why = "the correction's system could not be solved";
+        return false;
+      }
+      std::vector<FieldLevel> levels = field.levels();
+      FieldLevel& finest = levels.back();
+      Points grown(finest.centres.rows() + nc, 3);
+      grown << finest.centres, c;
+      Eigen::VectorXd weights(finest.weights.size() + nc);
+      weights << finest.weights, w;
+      finest.centres = std::move(grown);
+      finest.weights = std::move(weights);
+      repaired.emplace(field.normalization(), field.f0(), std::move(levels), field.offsets(), field.bounds());
+      after = std::make_unique<FieldEvaluator>(device, *repaired, precision);
+
+      // Checks. (a) Every anchor's sign holds.
+      const Eigen::VectorXd fa = after->evaluateNormalized(c.topRows(static_cast<Eigen::Index>(anchorCount)));
+      for (std::size_t i = 0; i < anchorCount; ++i) {
+        if ((fa[static_cast<Eigen::Index>(i)] > 0.0) != (targetsNow[i] > 0.0)) {
+          why = "f does not take the anchors' signs";
+          blame = owner[i];
+          return false;
+        }
+      }
+      // (b) f has the surroundings' sign on a grid of h/2 over each phantom, at the nodes on their side by the
+      // winding number (as the anchors are classified) and away from the samples: the box also holds solid
+      // and surface beside the phantom.
+      std::vector<Eigen::Vector3d> wrong;
+      std::vector<double> wrongSign;
+      std::vector<int> wrongOwner;
+      for (std::size_t k = 0; k < phantoms.size(); ++k) {
+        if (!active[k]) continue;
+        const Phantom& p = phantoms[k];
+        const std::vector<Eigen::Vector3d> nodes = gridNodes(p.box, h / 2.0, std::size_t{1} << 21);
+        if (nodes.empty()) {
+          why = "a phantom's box is too large to check";
+          blame = static_cast<int>(k);
+          return false;
+        }
+        const Points q = stack(nodes);
+        const NeighborLists nearest = index.knnSearch(q, 1);
+        const Eigen::VectorXd f = after->evaluateNormalized(q);
+        const Eigen::VectorXd wn = winding.evaluate(q);
+        for (Eigen::Index i = 0; i < q.rows(); ++i) {
+          const double d = nearest.distances[static_cast<std::size_t>(nearest.offsets[static_cast<std::size_t>(i)])];
+          const bool surroundings = p.sign < 0.0 ? wn[i] < 0.25 : wn[i] > 0.75;
+          if (surroundings && d >= p.minDistance && f[i] * p.sign <= 0.0) {
+            wrong.push_back(nodes[static_cast<std::size_t>(i)]);
+            wrongSign.push_back(p.sign);
+            wrongOwner.push_back(static_cast<int>(k));
+          }
+        }
+      }
+      rep.rounds = round + 1;
+      if (wrong.empty()) break;
+      if (round + 1 == kRounds) {
+        why = "f keeps the phantom's sign at " + std::to_string(wrong.size()) + " nodes between the anchors";
+        blame = wrongOwner.front();
+        return false;
+      }
+      const Points q = stack(wrong);
+      const Eigen::VectorXd d = detail::diskSoupDistance(q, u, inward, winding.areas(), index);
+      for (std::size_t i = 0; i < wrong.size(); ++i) {
+        anchorsNow.push_back(wrong[i]);
+        targetsNow.push_back(wrongSign[i] * std::min(d[static_cast<Eigen::Index>(i)], 1.0));
+        owner.push_back(wrongOwner[i]);
       }
     }
-    if (rows.empty()) continue;
-    Points q(static_cast<Eigen::Index>(rows.size()), 3);
-    for (std::size_t i = 0; i < rows.size(); ++i) q.row(static_cast<Eigen::Index>(i)) = mesh.vertices.row(rows[i]);
-    const Eigen::VectorXd f = after->evaluate(q).values;
-    std::vector<char> gone(count, 1);
-    for (Eigen::Index f2 = 0; f2 < mesh.faces.rows(); ++f2) {
-      const auto l = static_cast<std::size_t>(labels[static_cast<std::size_t>(f2)]);
-      if (inside[l] < 0) continue;
-      const double sign = phantoms[static_cast<std::size_t>(inside[l])].sign;
-      for (int k = 0; k < 3; ++k) {
-        const auto at = std::lower_bound(rows.begin(), rows.end(), mesh.faces(f2, k));
-        const auto i = static_cast<Eigen::Index>(at - rows.begin());
-        if (!((f[i] - isos[j]) * sign > 0.0)) gone[l] = 0;
+    std::vector<Index> removed;
+    repairedFaces = offsetFaces = 0;
+    for (std::size_t k = 0; k < phantoms.size(); ++k) {
+      if (!active[k]) continue;
+      removed.insert(removed.end(), phantoms[k].component->faceList.begin(), phantoms[k].component->faceList.end());
+      repairedFaces += phantoms[k].component->faces;
+    }
+    std::sort(removed.begin(), removed.end());
+    out.removedFaces.assign(meshes.size(), {});
+    out.removedFaces[0] = removed;
+    // An offset's components inside a phantom: a bump above δ_j holds a δ_j component too. One whose vertices
+    // all lie in a phantom's box, where f − δ_j now has the surroundings' sign at every vertex, goes with it.
+    for (std::size_t j = 1; j < meshes.size(); ++j) {
+      const Mesh& mesh = meshes[j];
+      if (mesh.faces.rows() == 0) continue;
+      std::size_t count = 0;
+      const std::vector<Index> labels = faceComponents(mesh, &count);
+      const Points un = normalised(mesh.vertices, norm);
+      std::vector<int> inside(count, -1);  // the phantom holding every vertex so far; −2: none does
+      for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
+        int& holder = inside[static_cast<std::size_t>(labels[static_cast<std::size_t>(f)])];
+        for (int k = 0; k < 3 && holder != -2; ++k) {
+          const Eigen::Vector3d x = un.row(mesh.faces(f, k)).transpose();
+          if (holder >= 0 && phantoms[static_cast<std::size_t>(holder)].box.contains(x)) continue;
+          holder = -2;
+          for (std::size_t i = 0; i < phantoms.size(); ++i) {
+            if (active[i] && phantoms[i].box.contains(x)) holder = static_cast<int>(i);
+          }
+        }
       }
+      std::vector<Index> rows;
+      std::vector<char> seen(static_cast<std::size_t>(mesh.vertices.rows()), 0);
+      for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
+        if (inside[static_cast<std::size_t>(labels[static_cast<std::size_t>(f)])] < 0) continue;
+        for (int k = 0; k < 3; ++k) {
+          const Index v = mesh.faces(f, k);
+          if (!seen[static_cast<std::size_t>(v)]) rows.push_back(v);
+          seen[static_cast<std::size_t>(v)] = 1;
+        }
+      }
+      if (rows.empty()) continue;
+      Points q(static_cast<Eigen::Index>(rows.size()), 3);
+      for (std::size_t i = 0; i < rows.size(); ++i) q.row(static_cast<Eigen::Index>(i)) = mesh.vertices.row(rows[i]);
+      const Eigen::VectorXd f = after->evaluate(q).values;
+      std::vector<char> gone(count, 1);
+      for (Eigen::Index f2 = 0; f2 < mesh.faces.rows(); ++f2) {
+        const auto l = static_cast<std::size_t>(labels[static_cast<std::size_t>(f2)]);
+        if (inside[l] < 0) continue;
+        const double sign = phantoms[static_cast<std::size_t>(inside[l])].sign;
+        for (int k = 0; k < 3; ++k) {
+          const auto at = std::lower_bound(rows.begin(), rows.end(), mesh.faces(f2, k));
+          const auto i = static_cast<Eigen::Index>(at - rows.begin());
+          if (!((f[i] - isos[j]) * sign > 0.0)) gone[l] = 0;
+        }
+      }
+      for (Eigen::Index f2 = 0; f2 < mesh.faces.rows(); ++f2) {
+        const auto l = static_cast<std::size_t>(labels[static_cast<std::size_t>(f2)]);
+        if (inside[l] >= 0 && gone[l]) out.removedFaces[j].push_back(static_cast<Index>(f2));
+      }
+      offsetFaces += out.removedFaces[j].size();
     }
-    for (Eigen::Index f2 = 0; f2 < mesh.faces.rows(); ++f2) {
-      const auto l = static_cast<std::size_t>(labels[static_cast<std::size_t>(f2)]);
-      if (inside[l] >= 0 && gone[l]) out.removedFaces[j].push_back(static_cast<Index>(f2));
-    }
-    offsetFaces += out.removedFaces[j].size();
-  }
-  // (c) The other meshes' vertices within σ_M of a correction centre follow their level sets (Newton steps
-  // along ∇f): the anchors' targets are the disk-soup distance, so the real surface beside a phantom moves
-  // a little (wheel_29k: 0.001 of the side). The move is bounded, and no face around a moved vertex may
-  // turn by more than 60 degrees.
-  double side = 0.0;
-  if (points.rows() > 0) side = (points.colwise().maxCoeff() - points.colwise().minCoeff()).maxCoeff();
-  const NeighborIndex correction(c);
+    // (c) The other meshes' vertices within σ_M of a correction centre follow their level sets (Newton steps
+    // along ∇f): the anchors' targets are the disk-soup distance, so the real surface beside a phantom moves
+    // a little (wheel_29k: 0.001 of the side). The move is bounded, and no face around a moved vertex may
+    // turn by more than 60 degrees.
+    const NeighborIndex correction(c);
+    const NeighborIndex anchorIndex(stack(anchorsNow));
+    // The phantom whose anchor is nearest to a point (input units).
+    const auto nearestOwner = [&](const Eigen::Vector3d& x) {
+      Points q(1, 3);
+      q.row(0) = norm.scale * (x - norm.centre).transpose();
+      const NeighborLists n = anchorIndex.knnSearch(q, 1);
+      return n.indices.empty() ? -1 : owner[static_cast<std::size_t>(n.indices[0])];
+  };
+  double largest = 0.0;
+  Eigen::Vector3d largestAt = Eigen::Vector3d::Zero();
+  const double tinyEdge = 1e-2 * sigma / norm.scale;
   out.moves.resize(meshes.size());
   for (std::size_t j = 0; j < meshes.size(); ++j) {
     const Mesh& mesh = meshes[j];
@@ -366,7 +409,12 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
     for (Eigen::Index i = 0; i < q.rows(); ++i) {
       const double g = now.gradients.row(i).norm();
       rep.maxDeviation = std::max(rep.maxDeviation, g > 0.0 ? std::abs(now.values[i] - isos[j]) / g : HUGE_VAL);
-      rep.maxChange = std::max(rep.maxChange, (q.row(i) - before.row(i)).norm());
+      const double moved = (q.row(i) - before.row(i)).norm();
+      rep.maxChange = std::max(rep.maxChange, moved);
+      if (moved > largest) {
+        largest = moved;
+        largestAt = before.row(i).transpose();
+      }
     }
     // The faces around the moved vertices keep their orientation.
     std::vector<Index> slot(skip.size(), -1);
@@ -380,11 +428,21 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
       bool touched = false;
       for (int k = 0; k < 3; ++k) touched = touched || slot[static_cast<std::size_t>(mesh.faces(f, k))] >= 0;
       if (!touched) continue;
-      const Eigen::Vector3d n0 = (corner(f, 1, false) - corner(f, 0, false)).cross(corner(f, 2, false) - corner(f, 0, false));
-      const Eigen::Vector3d n1 = (corner(f, 1, true) - corner(f, 0, true)).cross(corner(f, 2, true) - corner(f, 0, true));
-      if (!(n0.norm() > 0.0) || !(n1.dot(n0) >= 0.5 * n1.norm() * n0.norm())) {
-        rep.refused = "a face of surface " + std::to_string(j) + " beside the correction would turn";
-        return finish();
+      const Eigen::Vector3d p0 = corner(f, 0, false), p1 = corner(f, 1, false), p2 = corner(f, 2, false);
+      const Eigen::Vector3d q0 = corner(f, 0, true);
+      const Eigen::Vector3d n0 = (p1 - p0).cross(p2 - p0);
+      const Eigen::Vector3d n1 = (corner(f, 1, true) - q0).cross(corner(f, 2, true) - q0);
+      // A sliver's normal is ill-defined: it must only not flip; a face with some area must not turn by
+      // more than 60 degrees. Faces under 1% of σ_M across (the extraction leaves some of 1e-6) are not
+      // judged: a move of the solve's rounding turns them.
+      const double longest =
+          std::max(std::max((p1 - p0).squaredNorm(), (p2 - p0).squaredNorm()), (p2 - p1).squaredNorm());
+      if (longest < tinyEdge * tinyEdge) continue;
+      const bool sliver = n0.norm() < 1e-3 * longest;
+      if (!(n1.dot(n0) > (sliver ? 0.0 : 0.5 * n1.norm() * n0.norm()))) {
+        why = "a face of surface " + std::to_string(j) + " beside the correction would turn";
+        blame = nearestOwner(p0);
+        return false;
       }
     }
     for (std::size_t i = 0; i < rows.size(); ++i) {
@@ -392,12 +450,30 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
     }
   }
   if (!(rep.maxChange <= options.maxChange * side)) {
-    rep.refused = "the correction moves another part of the meshes' level sets by " + std::to_string(rep.maxChange) +
-                  " (more than " + std::to_string(options.maxChange * side) + ")";
-    out.moves.clear();
-    return finish();
+    why = "the correction moves another part of the meshes' level sets by " + std::to_string(rep.maxChange) +
+          " (more than " + std::to_string(options.maxChange * side) + ")";
+    blame = nearestOwner(largestAt);
+    return false;
   }
-  rep.repaired = phantoms.size();
+  return true;
+  };
+  while (!attempt()) {
+    if (blame < 0 || activeCount <= 1) {
+      rep.refused = rep.refusedPhantoms > 0 ? "the last of " + std::to_string(rep.refusedPhantoms + 1) +
+                                                   " phantoms: " + why
+                                             : why;
+      rep.refusedPhantoms += activeCount;
+      out.moves.clear();
+      out.removedFaces.clear();
+      rep.maxChange = rep.maxDeviation = 0.0;
+      return finish();
+    }
+    active[static_cast<std::size_t>(blame)] = 0;
+    --activeCount;
+    ++rep.refusedPhantoms;
+    if (rep.firstRefusal.empty()) rep.firstRefusal = why;
+  }
+  rep.repaired = activeCount;
   rep.repairedFaces = repairedFaces;
   rep.offsetFaces = offsetFaces;
   rep.anchors = anchorCount;

@@ -548,7 +548,8 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
                              {"not_phantom", pr.notPhantom},
                              {"anchors", pr.anchors},         {"keep_points", pr.keepPoints},
                              {"max_change", pr.maxChange},    {"max_deviation", pr.maxDeviation},
-                             {"rounds", pr.rounds}, {"iterations", pr.iterations},           {"refused", pr.refused},
+                             {"rounds", pr.rounds}, {"iterations", pr.iterations},
+                             {"refused_phantoms", pr.refusedPhantoms}, {"first_refusal", pr.firstRefusal},           {"refused", pr.refused},
                              {"seconds", pr.seconds}};
   w["shell"] = shellJson(result, meshNames, meshFormat);
   w["grid"] = Json{{"nx", report.grid.cells.x()},

@@ -133,4 +133,66 @@ TEST_SUITE("fit") {
     const SurfaceResult plain = extractSurfaces(repairDevice(), clean, isos);
     CHECK(emptyZeroLevelComponents(plain.meshes[0], cloud.positions(), 1.0).empty());
   }
+  TEST_CASE("phantom repair: a phantom whose correction fails a check is left out, the other one repaired") {
+    const double radius = 0.3, delta = 0.03;
+    const PointSet cloud = sphere(3000, radius);
+    FitOptions fo;
+    fo.offsets = {delta};
+    const FitResult fitted = fit(repairDevice(), cloud, fo);
+    const ImplicitField& clean = fitted.field;
+    const Normalization& norm = clean.normalization();
+    const double sigma = clean.levels().back().sigma / norm.scale;
+    // Blob A 2σ_M outside the sphere, blob B 1.4σ_M outside on another diagonal: B's correction moves the
+    // sphere's meshes more than A's.
+    const Eigen::Vector3d a = (radius + 2.0 * sigma) * Eigen::Vector3d(1.0, 1.0, 1.0).normalized();
+    const Eigen::Vector3d b = (radius + 1.4 * sigma) * Eigen::Vector3d(-1.0, -1.0, 1.0).normalized();
+    std::vector<FieldLevel> levels = clean.levels();
+    FieldLevel& finest = levels.back();
+    const Eigen::Index n = finest.centres.rows();
+    finest.centres.conservativeResize(n + 2, 3);
+    finest.weights.conservativeResize(n + 2);
+    finest.centres.row(n) = norm.scale * (a - norm.centre).transpose();
+    finest.centres.row(n + 1) = norm.scale * (b - norm.centre).transpose();
+    finest.weights[n] = (sigma - clean.value(a)) * norm.scale;
+    finest.weights[n + 1] = (0.6 * sigma - clean.value(b)) * norm.scale;
+    const ImplicitField planted(norm, clean.f0(), levels, clean.offsets(), clean.bounds());
+    const std::vector<double> isos{0.0, delta};
+    const SurfaceResult meshes = extractSurfaces(repairDevice(), planted, isos);
+    const std::vector<EmptyComponent> empty = emptyZeroLevelComponents(meshes.meshes[0], cloud.positions(), 1.0);
+    REQUIRE(empty.size() == 2);
+    const FieldEvaluator evaluator(repairDevice(), planted);
+    // With the default bound both go.
+    const PhantomRepairResult both = repairPhantoms(repairDevice(), Precision::Float, planted, evaluator,
+                                                    cloud.positions(), cloud.normals(), meshes.meshes, isos, empty);
+    MESSAGE("both: repaired " << both.report.repaired << ", left out " << both.report.refusedPhantoms << " ('" << both.report.firstRefusal << "'), moved " << both.report.maxChange << ", refused '"
+                              << both.report.refused << "'");
+    REQUIRE(both.report.repaired == 2);
+    // A alone moves the meshes less than the pair (B's correction reaches the sphere): a bound between the
+    // two (as a fraction of the side, 0.6) leaves B out.
+    std::vector<EmptyComponent> onlyA;
+    for (const EmptyComponent& e : empty) {
+      if (e.box.contains(a)) onlyA.push_back(e);
+    }
+    REQUIRE(onlyA.size() == 1);
+    const PhantomRepairResult alone = repairPhantoms(repairDevice(), Precision::Float, planted, evaluator,
+                                                     cloud.positions(), cloud.normals(), meshes.meshes, isos, onlyA);
+    REQUIRE(alone.report.repaired == 1);
+    REQUIRE(alone.report.maxChange < 0.9 * both.report.maxChange);
+    PhantomRepairOptions tight;
+    tight.maxChange = 0.5 * (alone.report.maxChange + both.report.maxChange) / 0.6;
+    const PhantomRepairResult one = repairPhantoms(repairDevice(), Precision::Float, planted, evaluator,
+                                                   cloud.positions(), cloud.normals(), meshes.meshes, isos, empty, tight);
+    const PhantomRepairReport& rep = one.report;
+    MESSAGE("tight: repaired " << rep.repaired << ", left out " << rep.refusedPhantoms << " ('" << rep.firstRefusal
+                               << "'), moved " << rep.maxChange);
+    CHECK(rep.repaired == 1);
+    CHECK(rep.refusedPhantoms == 1);
+    CHECK(rep.refused.empty());
+    CHECK(rep.firstRefusal.find("moves another part") != std::string::npos);
+    REQUIRE(one.field.has_value());
+    CHECK(one.field->value(a) < 0.0);  // A repaired
+    CHECK(one.field->value(b) > 0.0);  // B left as it was
+    REQUIRE(one.removedFaces.size() == 2);
+    CHECK(rep.maxChange <= tight.maxChange * 0.6);
+  }
 }
