@@ -38,18 +38,37 @@ PointSet sphere(int n, double r) {
   return PointSet(p, nn);
 }
 
+/// The sphere of radius 0.3 sampled by 3,000 points, fitted with one inward offset of 0.03 (the fit is
+/// shared by the cases, as their planted fields differ only in their added centres).
+struct FittedSphere {
+  double radius = 0.3, delta = 0.03;
+  PointSet cloud;
+  FitResult fitted;
+  double sigma = 0.0;  ///< σ_M, input units
+};
+
+const FittedSphere& fittedSphere() {
+  static const FittedSphere s = [] {
+    FittedSphere f;
+    f.cloud = sphere(3000, f.radius);
+    FitOptions fo;
+    fo.offsets = {f.delta};
+    f.fitted = fit(repairDevice(), f.cloud, fo);
+    f.sigma = f.fitted.field.levels().back().sigma / f.fitted.field.normalization().scale;
+    return f;
+  }();
+  return s;
+}
+
 }  // namespace
 
 TEST_SUITE("fit") {
   TEST_CASE("phantom repair: a blob planted beside a sphere leaves the field and the mesh; the sphere stays") {
-    const double radius = 0.3, delta = 0.03;
-    const PointSet cloud = sphere(3000, radius);
-    FitOptions fo;
-    fo.offsets = {delta};
-    const FitResult fitted = fit(repairDevice(), cloud, fo);
-    const ImplicitField& clean = fitted.field;
+    const FittedSphere& fs = fittedSphere();
+    const double radius = fs.radius, delta = fs.delta, sigma = fs.sigma;
+    const PointSet& cloud = fs.cloud;
+    const ImplicitField& clean = fs.fitted.field;
     const Normalization& norm = clean.normalization();
-    const double sigma = clean.levels().back().sigma / norm.scale;  // σ_M, input units
     MESSAGE("sigma_M " << sigma);
     REQUIRE(sigma < 0.1);
 
@@ -134,14 +153,11 @@ TEST_SUITE("fit") {
     CHECK(emptyZeroLevelComponents(plain.meshes[0], cloud.positions(), 1.0).empty());
   }
   TEST_CASE("phantom repair: a phantom whose correction fails a check is left out, the other one repaired") {
-    const double radius = 0.3, delta = 0.03;
-    const PointSet cloud = sphere(3000, radius);
-    FitOptions fo;
-    fo.offsets = {delta};
-    const FitResult fitted = fit(repairDevice(), cloud, fo);
-    const ImplicitField& clean = fitted.field;
+    const FittedSphere& fs = fittedSphere();
+    const double radius = fs.radius, delta = fs.delta, sigma = fs.sigma;
+    const PointSet& cloud = fs.cloud;
+    const ImplicitField& clean = fs.fitted.field;
     const Normalization& norm = clean.normalization();
-    const double sigma = clean.levels().back().sigma / norm.scale;
     // Blob A 2σ_M outside the sphere, blob B 1.4σ_M outside on another diagonal: B's correction moves the
     // sphere's meshes more than A's.
     const Eigen::Vector3d a = (radius + 2.0 * sigma) * Eigen::Vector3d(1.0, 1.0, 1.0).normalized();
