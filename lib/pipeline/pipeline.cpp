@@ -734,6 +734,10 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
                    std::to_string(pr.anchors) + " anchors, " + std::to_string(pr.keepPoints) +
                    " keep points at the finest level; vertices beside it moved by at most " + numText(pr.maxChange) +
                    " onto the level sets), " + std::to_string(pr.seconds) + " s");
+      if (pr.refusedPhantoms > 0) {
+        progress.log("phantom repair: " + std::to_string(pr.refusedPhantoms) + " candidate(s) left as they were (" +
+                     pr.firstRefusal + ")");
+      }
       const double firstCheck = report.selfCheck.seconds;
       report.selfCheck = selfCheck(meshes, isos, checkPoints, options.selfCheck);
       report.selfCheck.seconds += firstCheck;
