@@ -89,6 +89,10 @@ struct SelfCheckOptions {
   /// this many mean edge lengths, the phantom repair's candidates (0: not asked). At one edge, half the
   /// check's default, a phantom beside a real surface that the check lets pass is among them.
   double candidateEdges = 0.0;
+  /// When candidateEdges lists components, stop after the zero level (SelfCheckReport::offsetsChecked
+  /// false): for a caller that changes the meshes for them and checks again (the pipeline's phantom repair),
+  /// so that the offsets are measured once.
+  bool candidatesFirst = false;
 };
 
 /// One mesh's part of the check.
@@ -110,6 +114,7 @@ struct SelfCheckReport {
   std::vector<EmptyComponent> emptyComponents;
   double pointTolerance = 0.0;            ///< the tolerance used (input units; 0 when not checked)
   bool pointsChecked = false;             ///< input points were given, so NoInputPoints was tested
+  bool offsetsChecked = true;             ///< the offset meshes were checked (see candidatesFirst)
   double minAreaFraction = 0.0;           ///< as given to cleanAndSelfCheck
   double minOffsetAreaFraction = 0.0;     ///< as given to cleanAndSelfCheck
   double seconds = 0.0;

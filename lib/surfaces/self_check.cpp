@@ -361,8 +361,10 @@ SelfCheckReport selfCheck(const std::vector<Mesh>& meshes, const std::vector<dou
     if (options.candidateEdges > 0.0) r.emptyComponents = describeEmpty(zero, c, asked ? loose : strict);
   }
 
-  // The offsets: every component must lie at about |δ_j| from the zero level.
-  for (std::size_t j = 1; j < meshes.size(); ++j) {
+  // The offsets: every component must lie at about |δ_j| from the zero level (not yet when the caller will
+  // change the meshes for the candidates found and check them again).
+  r.offsetsChecked = !(options.candidatesFirst && !r.emptyComponents.empty());
+  for (std::size_t j = 1; j < meshes.size() && r.offsetsChecked; ++j) {
     const Components& c = comps[j];
     if (c.stats.empty()) continue;
     std::vector<OffsetReport::Component> measured;

@@ -127,6 +127,20 @@ TEST_CASE("self-check: candidateEdges lists the components without points within
   REQUIRE(direct.size() == 1);
   CHECK(direct[0].faceList == e.faceList);
   CHECK_THROWS_AS(emptyZeroLevelComponents(meshes[0], points, 0.0), InvalidArgument);
+  // candidatesFirst: with candidates the offsets wait (a planted offset sphere at the wrong distance is not
+  // reported yet); without any they are checked as usual.
+  const Mesh offset = merged(icosphere(4, 0.8), icosphere(2, 0.05, Eigen::RowVector3d(-3.0, 0.0, 0.0)));
+  const std::vector<Mesh> withOffset = {meshes[0], offset};
+  o.candidatesFirst = true;
+  const SelfCheckReport first = selfCheck(withOffset, {0.0, 0.2}, points, o);
+  CHECK_FALSE(first.offsetsChecked);
+  CHECK(first.emptyComponents.size() == 1);
+  CHECK(first.ok());
+  o.candidateEdges = 0.0;  // nothing listed: the offsets are checked in the same call
+  const SelfCheckReport whole = selfCheck(withOffset, {0.0, 0.2}, points, o);
+  CHECK(whole.offsetsChecked);
+  REQUIRE(whole.issues.size() == 1);
+  CHECK(whole.issues[0].why == ComponentIssue::Why::OffOffset);
   o.candidateEdges = -1.0;
   CHECK_THROWS_AS(selfCheck(meshes, {0.0}, points, o), InvalidArgument);
 }
