@@ -3,9 +3,10 @@
 // solid the coarse levels left in a pocket or narrow gap, too near the samples for the sign anchors' band.
 // The repair adds centres of the finest level's support there: sign anchors on a fine grid over the
 // component with the signed distance to the cloud as target, and centres that keep f where it is at the
-// input points, their offset companions and off-surface points around them. The correction is accepted
-// only when the anchors' signs hold, f has the surroundings' sign on a grid over each component, and every
-// other mesh's vertices near it stay on their level sets.
+// input points, their offset companions and off-surface points around them. A phantom's correction is
+// kept only when its anchors' signs hold, f has the surroundings' sign on a grid over the component, and
+// the other meshes' vertices near it follow their level sets by a bounded move without turning a face;
+// a phantom that fails is left out and the others are solved again without it.
 #pragma once
 
 #include <cstddef>
