@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -61,6 +62,8 @@ struct PhantomRepairReport {
 struct PhantomRepairResult {
   PhantomRepairReport report;
   std::optional<ImplicitField> field;  ///< the repaired field (set when report.repaired > 0)
+  /// An evaluator of `field` on the device and in the precision given (set with it; the checks built it).
+  std::shared_ptr<const FieldEvaluator> evaluator;
   /// Per mesh, the faces to remove (ascending): of meshes[0] the repaired components', of an offset mesh
   /// its components inside a phantom whose level the repair removed too (a bump above δ holds a δ level).
   std::vector<std::vector<Index>> removedFaces;

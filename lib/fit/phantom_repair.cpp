@@ -18,15 +18,15 @@
 #include "duplexfit/winding.hpp"
 #include "fit/anchors.hpp"
 #include "spatial/disk_distance.hpp"
+#include "surfaces/newton.hpp"
+#include "surfaces/splice.hpp"
 
 namespace duplexfit {
 
 namespace {
 
 Points normalised(const Points& x, const Normalization& n) {
-  Points u(x.rows(), 3);
-  for (Eigen::Index i = 0; i < x.rows(); ++i) u.row(i) = n.scale * (x.row(i) - n.centre.transpose());
-  return u;
+  return (n.scale * (x.rowwise() - n.centre.transpose())).eval();  // as fit() normalises its input
 }
 
 Points stack(const std::vector<Eigen::Vector3d>& rows) {
@@ -108,6 +108,7 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
     double sign;              // the surroundings' sign: the anchors' targets'
     std::vector<Eigen::Vector3d> anchors;
     std::vector<double> targets;
+    Points checked;           // check (b)'s grid nodes, found once (see below)
   };
   std::vector<Phantom> phantoms;
   for (const EmptyComponent& e : empty) {
@@ -137,7 +138,28 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
       ++rep.notPhantom;
       continue;
     }
-    Phantom p{&e, box, o.minDistance, sum > 0.0 ? 1.0 : -1.0, {}, {}};
+    Phantom p{&e, box, o.minDistance, sum > 0.0 ? 1.0 : -1.0, {}, {}, Points(0, 3)};
+    // Check (b)'s nodes: a grid of h/2 over the box, those on the surroundings' side by the winding number
+    // (as the anchors are classified) and as far from the samples: the box also holds solid and surface
+    // beside the phantom. They do not depend on the field, so every round and attempt reuses them.
+    const std::vector<Eigen::Vector3d> nodes = gridNodes(box, h / 2.0, std::size_t{1} << 21);
+    if (nodes.empty()) {  // a box too large to check: left as it is
+      ++rep.refusedPhantoms;
+      if (rep.firstRefusal.empty()) rep.firstRefusal = "a phantom's box is too large to check";
+      continue;
+    }
+    {
+      const Points q = stack(nodes);
+      const NeighborLists nearest = index.knnSearch(q, 1);
+      const Eigen::VectorXd wn = winding.evaluate(q);
+      std::vector<Eigen::Vector3d> kept;
+      for (Eigen::Index i = 0; i < q.rows(); ++i) {
+        const double d = nearest.distances[static_cast<std::size_t>(nearest.offsets[static_cast<std::size_t>(i)])];
+        const bool surroundings = p.sign < 0.0 ? wn[i] < 0.25 : wn[i] > 0.75;
+        if (surroundings && d >= p.minDistance) kept.push_back(nodes[static_cast<std::size_t>(i)]);
+      }
+      p.checked = stack(kept);
+    }
     for (Eigen::Index i = 0; i < a.positions.rows(); ++i) {
       p.anchors.emplace_back(a.positions.row(i).transpose());
       p.targets.push_back(a.targets[i]);
@@ -158,7 +180,7 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
   Points c;
   std::size_t anchorCount = 0;
   std::optional<ImplicitField> repaired;
-  std::unique_ptr<FieldEvaluator> after;
+  std::shared_ptr<const FieldEvaluator> after;
   std::size_t repairedFaces = 0, offsetFaces = 0;  // reported when the repair is kept
   const auto attempt = [&]() -> bool {
     blame = -1;
@@ -249,7 +271,7 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
       finest.centres = std::move(grown);
       finest.weights = std::move(weights);
       repaired.emplace(field.normalization(), field.f0(), std::move(levels), field.offsets(), field.bounds());
-      after = std::make_unique<FieldEvaluator>(device, *repaired, precision);
+      after = std::make_shared<const FieldEvaluator>(device, *repaired, precision);
 
       // Checks. (a) Every anchor's sign holds.
       const Eigen::VectorXd fa = after->evaluateNormalized(c.topRows(static_cast<Eigen::Index>(anchorCount)));
@@ -260,33 +282,20 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
           return false;
         }
       }
-      // (b) f has the surroundings' sign on a grid of h/2 over each phantom, at the nodes on their side by the
-      // winding number (as the anchors are classified) and away from the samples: the box also holds solid
-      // and surface beside the phantom.
+      // (b) f has the surroundings' sign at each phantom's check nodes (a grid of h/2 over its box, the
+      // nodes on the surroundings' side away from the samples).
       std::vector<Eigen::Vector3d> wrong;
       std::vector<double> wrongSign;
       std::vector<int> wrongOwner;
       for (std::size_t k = 0; k < phantoms.size(); ++k) {
         if (!active[k]) continue;
         const Phantom& p = phantoms[k];
-        const std::vector<Eigen::Vector3d> nodes = gridNodes(p.box, h / 2.0, std::size_t{1} << 21);
-        if (nodes.empty()) {
-          why = "a phantom's box is too large to check";
-          blame = static_cast<int>(k);
-          return false;
-        }
-        const Points q = stack(nodes);
-        const NeighborLists nearest = index.knnSearch(q, 1);
-        const Eigen::VectorXd f = after->evaluateNormalized(q);
-        const Eigen::VectorXd wn = winding.evaluate(q);
-        for (Eigen::Index i = 0; i < q.rows(); ++i) {
-          const double d = nearest.distances[static_cast<std::size_t>(nearest.offsets[static_cast<std::size_t>(i)])];
-          const bool surroundings = p.sign < 0.0 ? wn[i] < 0.25 : wn[i] > 0.75;
-          if (surroundings && d >= p.minDistance && f[i] * p.sign <= 0.0) {
-            wrong.push_back(nodes[static_cast<std::size_t>(i)]);
-            wrongSign.push_back(p.sign);
-            wrongOwner.push_back(static_cast<int>(k));
-          }
+        const Eigen::VectorXd f = after->evaluateNormalized(p.checked);
+        for (Eigen::Index i = 0; i < p.checked.rows(); ++i) {
+          if (f[i] * p.sign > 0.0) continue;
+          wrong.emplace_back(p.checked.row(i).transpose());
+          wrongSign.push_back(p.sign);
+          wrongOwner.push_back(static_cast<int>(k));
         }
       }
       rep.rounds = round + 1;
@@ -365,97 +374,96 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
       }
       offsetFaces += out.removedFaces[j].size();
     }
-    // (c) The other meshes' vertices within σ_M of a correction centre follow their level sets (Newton steps
-    // along ∇f): the anchors' targets are the disk-soup distance, so the real surface beside a phantom moves
+    // (c) The other meshes' vertices within σ_M of a correction centre follow their level sets (the
+    // finishing's Newton paths): the anchors' targets are the disk-soup distance, so the real surface beside a phantom moves
     // a little (wheel_29k: 0.001 of the side). The move is bounded, and no face around a moved vertex may
     // turn by more than 60 degrees.
     const NeighborIndex correction(c);
     const NeighborIndex anchorIndex(stack(anchorsNow));
+    const FieldGradientSampler sampler = detail::fieldGradientSampler(*after);
     // The phantom whose anchor is nearest to a point (input units).
     const auto nearestOwner = [&](const Eigen::Vector3d& x) {
       Points q(1, 3);
       q.row(0) = norm.scale * (x - norm.centre).transpose();
       const NeighborLists n = anchorIndex.knnSearch(q, 1);
       return n.indices.empty() ? -1 : owner[static_cast<std::size_t>(n.indices[0])];
-  };
-  double largest = 0.0;
-  Eigen::Vector3d largestAt = Eigen::Vector3d::Zero();
-  const double tinyEdge = 1e-2 * sigma / norm.scale;
-  out.moves.resize(meshes.size());
-  for (std::size_t j = 0; j < meshes.size(); ++j) {
-    const Mesh& mesh = meshes[j];
-    std::vector<char> skip(static_cast<std::size_t>(mesh.vertices.rows()), 0);
-    for (const Index f : out.removedFaces[j]) {
-      for (int k = 0; k < 3; ++k) skip[static_cast<std::size_t>(mesh.faces(f, k))] = 1;
-    }
-    const NeighborLists near = correction.nearestWithin(normalised(mesh.vertices, norm), sigma);
-    std::vector<Index> rows;
-    for (std::size_t v = 0; v < skip.size(); ++v) {
-      if (!skip[v] && near.count(v) > 0) rows.push_back(static_cast<Index>(v));
-    }
-    if (rows.empty()) continue;
-    Points q(static_cast<Eigen::Index>(rows.size()), 3);
-    for (std::size_t i = 0; i < rows.size(); ++i) q.row(static_cast<Eigen::Index>(i)) = mesh.vertices.row(rows[i]);
-    const Points before = q;
-    FieldSamples now;
-    for (int step = 0; step < 4; ++step) {
-      now = after->evaluate(q, FieldDerivatives::Gradient);
-      if (step == 3) break;
-      for (Eigen::Index i = 0; i < q.rows(); ++i) {
-        const double g2 = now.gradients.row(i).squaredNorm();
-        if (g2 > 0.0) q.row(i) -= (now.values[i] - isos[j]) / g2 * now.gradients.row(i);
-      }
-    }
-    for (Eigen::Index i = 0; i < q.rows(); ++i) {
-      const double g = now.gradients.row(i).norm();
-      rep.maxDeviation = std::max(rep.maxDeviation, g > 0.0 ? std::abs(now.values[i] - isos[j]) / g : HUGE_VAL);
-      const double moved = (q.row(i) - before.row(i)).norm();
-      rep.maxChange = std::max(rep.maxChange, moved);
-      if (moved > largest) {
-        largest = moved;
-        largestAt = before.row(i).transpose();
-      }
-    }
-    // The faces around the moved vertices keep their orientation.
-    std::vector<Index> slot(skip.size(), -1);
-    for (std::size_t i = 0; i < rows.size(); ++i) slot[static_cast<std::size_t>(rows[i])] = static_cast<Index>(i);
-    const auto corner = [&](Eigen::Index f, int k, bool moved) -> Eigen::Vector3d {
-      const Index v = mesh.faces(f, k);
-      const Index i = moved ? slot[static_cast<std::size_t>(v)] : -1;
-      return i >= 0 ? Eigen::Vector3d(q.row(i).transpose()) : Eigen::Vector3d(mesh.vertices.row(v).transpose());
     };
-    for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
-      bool touched = false;
-      for (int k = 0; k < 3; ++k) touched = touched || slot[static_cast<std::size_t>(mesh.faces(f, k))] >= 0;
-      if (!touched) continue;
-      const Eigen::Vector3d p0 = corner(f, 0, false), p1 = corner(f, 1, false), p2 = corner(f, 2, false);
-      const Eigen::Vector3d q0 = corner(f, 0, true);
-      const Eigen::Vector3d n0 = (p1 - p0).cross(p2 - p0);
-      const Eigen::Vector3d n1 = (corner(f, 1, true) - q0).cross(corner(f, 2, true) - q0);
-      // A sliver's normal is ill-defined: it must only not flip; a face with some area must not turn by
-      // more than 60 degrees. Faces under 1% of σ_M across (the extraction leaves some of 1e-6) are not
-      // judged: a move of the solve's rounding turns them.
-      const double longest =
-          std::max(std::max((p1 - p0).squaredNorm(), (p2 - p0).squaredNorm()), (p2 - p1).squaredNorm());
-      if (longest < tinyEdge * tinyEdge) continue;
-      const bool sliver = n0.norm() < 1e-3 * longest;
-      if (!(n1.dot(n0) > (sliver ? 0.0 : 0.5 * n1.norm() * n0.norm()))) {
-        why = "a face of surface " + std::to_string(j) + " beside the correction would turn";
-        blame = nearestOwner(p0);
-        return false;
+    double largest = 0.0;
+    Eigen::Vector3d largestAt = Eigen::Vector3d::Zero();
+    const double tinyEdge = 1e-2 * sigma / norm.scale;
+    out.moves.resize(meshes.size());
+    for (std::size_t j = 0; j < meshes.size(); ++j) {
+      const Mesh& mesh = meshes[j];
+      std::vector<char> skip(static_cast<std::size_t>(mesh.vertices.rows()), 0);
+      for (const Index f : out.removedFaces[j]) {
+        for (int k = 0; k < 3; ++k) skip[static_cast<std::size_t>(mesh.faces(f, k))] = 1;
+      }
+      const NeighborLists near = correction.nearestWithin(normalised(mesh.vertices, norm), sigma);
+      std::vector<Index> rows;
+      for (std::size_t v = 0; v < skip.size(); ++v) {
+        if (!skip[v] && near.count(v) > 0) rows.push_back(static_cast<Index>(v));
+      }
+      if (rows.empty()) continue;
+      Points q(static_cast<Eigen::Index>(rows.size()), 3);
+      for (std::size_t i = 0; i < rows.size(); ++i) q.row(static_cast<Eigen::Index>(i)) = mesh.vertices.row(rows[i]);
+      const Points before = q;
+      std::vector<char> converged;
+      std::vector<double> rest;
+      detail::newtonPaths(sampler, q, isos[j], side, converged, rest);
+      for (Eigen::Index i = 0; i < q.rows(); ++i) {
+        if (!converged[static_cast<std::size_t>(i)]) {
+          why = "a vertex of surface " + std::to_string(j) + " beside the correction finds no level set";
+          blame = nearestOwner(before.row(i).transpose());
+          return false;
+        }
+        rep.maxDeviation = std::max(rep.maxDeviation, rest[static_cast<std::size_t>(i)]);
+        const double moved = (q.row(i) - before.row(i)).norm();
+        rep.maxChange = std::max(rep.maxChange, moved);
+        if (moved > largest) {
+          largest = moved;
+          largestAt = before.row(i).transpose();
+        }
+      }
+      // The faces around the moved vertices keep their orientation.
+      std::vector<Index> slot(skip.size(), -1);
+      for (std::size_t i = 0; i < rows.size(); ++i) slot[static_cast<std::size_t>(rows[i])] = static_cast<Index>(i);
+      const auto corner = [&](Eigen::Index f, int k, bool moved) -> Eigen::Vector3d {
+        const Index v = mesh.faces(f, k);
+        const Index i = moved ? slot[static_cast<std::size_t>(v)] : -1;
+        return i >= 0 ? Eigen::Vector3d(q.row(i).transpose()) : Eigen::Vector3d(mesh.vertices.row(v).transpose());
+      };
+      for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
+        bool touched = false;
+        for (int k = 0; k < 3; ++k) touched = touched || slot[static_cast<std::size_t>(mesh.faces(f, k))] >= 0;
+        if (!touched) continue;
+        const Eigen::Vector3d p0 = corner(f, 0, false), p1 = corner(f, 1, false), p2 = corner(f, 2, false);
+        const Eigen::Vector3d q0 = corner(f, 0, true);
+        const Eigen::Vector3d n0 = (p1 - p0).cross(p2 - p0);
+        const Eigen::Vector3d n1 = (corner(f, 1, true) - q0).cross(corner(f, 2, true) - q0);
+        // A sliver's normal is ill-defined: it must only not flip; a face with some area must not turn by
+        // more than 60 degrees. Faces under 1% of σ_M across (the extraction leaves some of 1e-6) are not
+        // judged: a move of the solve's rounding turns them.
+        const double longest =
+            std::max(std::max((p1 - p0).squaredNorm(), (p2 - p0).squaredNorm()), (p2 - p1).squaredNorm());
+        if (longest < tinyEdge * tinyEdge) continue;
+        const bool sliver = n0.norm() < 1e-3 * longest;
+        if (!(n1.dot(n0) > (sliver ? 0.0 : 0.5 * n1.norm() * n0.norm()))) {
+          why = "a face of surface " + std::to_string(j) + " beside the correction would turn";
+          blame = nearestOwner(p0);
+          return false;
+        }
+      }
+      for (std::size_t i = 0; i < rows.size(); ++i) {
+        out.moves[j].emplace_back(rows[i], Eigen::Vector3d(q.row(static_cast<Eigen::Index>(i)).transpose()));
       }
     }
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-      out.moves[j].emplace_back(rows[i], Eigen::Vector3d(q.row(static_cast<Eigen::Index>(i)).transpose()));
+    if (!(rep.maxChange <= options.maxChange * side)) {
+      why = "the correction moves another part of the meshes' level sets by " + std::to_string(rep.maxChange) +
+            " (more than " + std::to_string(options.maxChange * side) + ")";
+      blame = nearestOwner(largestAt);
+      return false;
     }
-  }
-  if (!(rep.maxChange <= options.maxChange * side)) {
-    why = "the correction moves another part of the meshes' level sets by " + std::to_string(rep.maxChange) +
-          " (more than " + std::to_string(options.maxChange * side) + ")";
-    blame = nearestOwner(largestAt);
-    return false;
-  }
-  return true;
+    return true;
   };
   while (!attempt()) {
     if (blame < 0 || activeCount <= 1) {
@@ -479,6 +487,7 @@ PhantomRepairResult repairPhantoms(const Device& device, Precision precision, co
   rep.anchors = anchorCount;
   rep.keepPoints = static_cast<std::size_t>(c.rows()) - anchorCount;
   out.field = std::move(*repaired);
+  out.evaluator = std::move(after);
   return finish();
 }
 

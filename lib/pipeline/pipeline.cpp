@@ -717,7 +717,7 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
     const PhantomRepairReport& pr = repaired.report;
     if (repaired.field) {
       result.fields[0] = std::move(*repaired.field);
-      evaluator = std::make_shared<const FieldEvaluator>(device, result.fields[0], precision);
+      evaluator = std::move(repaired.evaluator);  // the repair's checks built it for the repaired field
       for (std::size_t j = 0; j < repaired.moves.size() && j < meshes.size(); ++j) {
         for (const auto& [v, x] : repaired.moves[j]) meshes[j].vertices.row(v) = x.transpose();
       }
