@@ -91,6 +91,17 @@ int cmdFit(int argc, char** argv) {
   app.add_flag("--side-test", fit.sideTest, "reject offset points behind their nearest point's tangent plane");
   app.add_flag_callback("--no-anchors", [&] { fit.signAnchors = false; }, "no sign anchors in empty space");
   addInteger(app, "anchor-skip", fit.anchorSkipFinest, "sign anchors at levels 1 .. M - N (default 1)");
+  app.add_flag_callback("--no-overshoot-check", [&] { fit.overshootCheck = false; },
+                        "no check of the finest level between sparse samples (else points D off the surface, "
+                        "where f is less than D/2 off it and no sample is nearer, join the level)");
+  addNumber(app, "overshoot-spacings", fit.overshootSpacings,
+            "D of the overshoot check in median sample spacings (default 1.5)")
+      ->check([](const std::string& v) {
+        const double d = parseFinite(v, "overshoot-spacings");
+        if (!(d > 0.0)) throw UsageError("option --overshoot-spacings must be positive");
+        return std::string();
+      });
+  addInteger(app, "overshoot-rounds", fit.overshootRounds, "solves of the finest level the overshoot check may add (default 2)");
   app.add_flag_callback("--no-phantom-repair", [&] { o.repairPhantoms = false; },
                         "keep zero-level components without input points that the winding number calls empty "
                         "space (else removed from the field and the mesh)");

@@ -92,6 +92,10 @@ reference:
                        plane (removes spurious sheets from flipped normals; see FitOptions::sideTest)
       --no-anchors     no sign anchors in empty space (winding-number classified centres at levels
                        1 .. M - --anchor-skip, default 1; they stop holes filling with phantom solid)
+      --no-overshoot-check  do not check the finest level at points D off the samples (D =
+                       --overshoot-spacings, default 1.5 median spacings); by default those where f is less
+                       than D/2 off the surface, with no sample nearer than D, join the level (bulbs and
+                       bridges between sparse samples), in up to --overshoot-rounds (default 2) solves
       --no-medial      drop offset/off-surface points rejected by the validity test instead of moving
                        them onto the medial surface of thin parts with their true distance as target
       --offset-correction  add a correction level: points Newton-projected onto each δ level, fitted

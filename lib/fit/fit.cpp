@@ -21,6 +21,7 @@
 #include "fit/fit_detail.hpp"
 #include "fit/hierarchy.hpp"
 #include "spatial/disk_distance.hpp"
+#include "spatial/morton.hpp"
 
 namespace duplexfit {
 
@@ -418,6 +419,99 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   // f_k as the levels are solved: one evaluator, each level appended once (right-hand sides, the offset
   // correction, E_0), handed on to extraction with the result.
   auto evaluator = std::make_shared<FieldEvaluator>(device, norm, -1.0, options.precision);
+  // Overshoot check at the finest level (FitOptions::overshootCheck, docs/method.md "Overshoot between
+  // sparse samples"): level M's bumps can add up to solid between sparse samples (a bulb over a sharp
+  // ridge, a bridge across a narrow gap) where no constraint reaches: the off-surface points sit σ_M/10
+  // off the surface and the sign anchors start 3 spacings away. With `evaluator` holding levels 1 … M − 1,
+  // f_M = f_{M−1} + level M is evaluated at p + s·D·ν (D = overshootSpacings median spacings, s each
+  // off-surface side); where it is less than D/2 on its side and no other input point lies within D (so
+  // the surface is about D away), the point joins level M with target s·D and the level is solved again.
+  auto overshootCheck = [&](detail::LevelConstraints& c, Eigen::VectorXd& b, CsrMatrix a, double sigma, int k,
+                            LevelWork& lr) -> CsrMatrix {
+    const auto t0 = Clock::now();
+    if (spacing <= 0.0) {
+      if (!inputIndex) inputIndex = std::make_unique<NeighborIndex>(u);
+      spacing = detail::medianSpacing(estimatePointAreas(u, Points(-nu), WindingOptions().areaNeighbors, *inputIndex));
+    }
+    const double d = options.overshootSpacings * spacing;
+    if (!(d > 0.0) || !std::isfinite(d)) return a;
+    // The candidates in the Morton order of their points: in the cloud's order (fandisk_550k's is random)
+    // the evaluation took three times as long, its centres read from all over the field.
+    const std::vector<std::uint32_t> order = detail::processingOrder(u, 2);
+    std::vector<Eigen::Index> source;
+    std::vector<double> toward;  // −1 outside, +1 inside
+    for (const double s : {-1.0, 1.0}) {
+      if (!(offSide == 2 || (offSide == -1 && s < 0.0) || (offSide == 1 && s > 0.0))) continue;
+      for (Eigen::Index r = 0; r < u.rows(); ++r) {
+        const Eigen::Index i = order.empty() ? r : static_cast<Eigen::Index>(order[static_cast<std::size_t>(r)]);
+        if (nu.row(i).squaredNorm() == 0.0) continue;
+        source.push_back(i);
+        toward.push_back(s);
+      }
+    }
+    Points q(static_cast<Eigen::Index>(source.size()), 3);
+    for (std::size_t r = 0; r < source.size(); ++r) {
+      q.row(static_cast<Eigen::Index>(r)) = u.row(source[r]) + toward[r] * d * nu.row(source[r]);
+    }
+    std::vector<char> added(source.size(), 0);
+    double assembly = 0.0, solve = 0.0;
+    for (int round = 0; round < options.overshootRounds; ++round) {
+      // f_M at every candidate: `evaluator` holds level M as solved last.
+      const Eigen::VectorXd f = evaluator->evaluateNormalized(q);
+      std::vector<std::size_t> failing;
+      for (std::size_t r = 0; r < source.size(); ++r) {
+        if (!added[r] && toward[r] * f[static_cast<Eigen::Index>(r)] < 0.5 * d) failing.push_back(r);
+      }
+      if (failing.empty()) break;
+      if (!inputIndex) inputIndex = std::make_unique<NeighborIndex>(u);
+      Points fq(static_cast<Eigen::Index>(failing.size()), 3);
+      std::vector<Index> exclude(failing.size());
+      for (std::size_t j = 0; j < failing.size(); ++j) {
+        fq.row(static_cast<Eigen::Index>(j)) = q.row(static_cast<Eigen::Index>(failing[j]));
+        exclude[j] = static_cast<Index>(source[failing[j]]);
+      }
+      const NeighborLists other = inputIndex->anyOtherWithin(fq, exclude, std::vector<double>(failing.size(), d));
+      std::vector<std::size_t> sites;
+      for (std::size_t j = 0; j < failing.size(); ++j) {
+        if (other.count(j) == 0) sites.push_back(failing[j]);
+      }
+      if (sites.empty()) break;
+      // Their right-hand sides need f_{M−1} = f_M − level M's own terms (an evaluator of level M alone).
+      const Eigen::Index base = c.centres.rows(), extra = static_cast<Eigen::Index>(sites.size());
+      Points at(extra, 3);
+      for (Eigen::Index j = 0; j < extra; ++j) at.row(j) = q.row(static_cast<Eigen::Index>(sites[static_cast<std::size_t>(j)]));
+      FieldEvaluator own(device, norm, 0.0, options.precision);
+      own.appendLevel(fitted.back());
+      const Eigen::VectorXd g = own.evaluateNormalized(at);
+      c.centres.conservativeResize(base + extra, 3);
+      c.targets.conservativeResize(base + extra);
+      b.conservativeResize(base + extra);
+      for (Eigen::Index j = 0; j < extra; ++j) {
+        const std::size_t r = sites[static_cast<std::size_t>(j)];
+        c.centres.row(base + j) = at.row(j);
+        c.targets[base + j] = toward[r] * d;
+        b[base + j] = toward[r] * d - (f[static_cast<Eigen::Index>(r)] - g[j]);
+        added[r] = 1;
+      }
+      if (c.sources.size() == static_cast<std::size_t>(base)) c.sources.resize(static_cast<std::size_t>(base + extra), -1);
+      assembly += lr.secondsAssembly;
+      solve += lr.secondsSolve;
+      a = solveLevel(c.centres, sigma, options.smoothing * k, b, k, lr);
+      fitted.back() = FieldLevel{sigma, c.centres, std::move(lr.weights)};
+      // The evaluator again, with the new level M (an evaluator cannot drop a level).
+      auto rebuilt = std::make_shared<FieldEvaluator>(device, norm, -1.0, options.precision);
+      for (const FieldLevel& level : fitted) rebuilt->appendLevel(level);
+      evaluator = std::move(rebuilt);
+      lr.overshootSites += sites.size();
+      lr.overshootRounds = round + 1;
+    }
+    lr.secondsAssembly += assembly;
+    lr.secondsSolve += solve;
+    lr.centres = static_cast<std::size_t>(c.centres.rows());
+    lr.secondsOvershoot = secondsSince(t0);
+    return a;
+  };
+
   std::vector<Points> finestOffsetPoints(deltas.size());  // valid offset points of level M, per offset
   bool finestIsInput = false;              // the last level solved was level M (its points are the input)
   double e0Centres = 0.0;                  // max |f| at input points that are level-M centres
@@ -453,7 +547,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     report(interrupter, {FitStage::Residual, k, levels, 0, 0.0, ""}, &work);
     Eigen::VectorXd fPrev = Eigen::VectorXd::Constant(c.centres.rows(), -1.0);
     if (!fitted.empty()) fPrev = evaluator->evaluateNormalized(c.centres);
-    const Eigen::VectorXd b = c.targets - fPrev;
+    Eigen::VectorXd b = c.targets - fPrev;
     lr.maxResidualBefore = (b.size() > 0 ? b.cwiseAbs().maxCoeff() : 0.0) / norm.scale;
     lr.secondsResidual = secondsSince(t);
     if (k >= 2 && options.fitTolerance > 0.0 && lr.maxResidualBefore * norm.scale <= options.fitTolerance) {
@@ -466,6 +560,9 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
 
     fitted.push_back(FieldLevel{sigma, c.centres, std::move(lr.weights)});
     evaluator->appendLevel(fitted.back());
+    if (k == levels && options.overshootCheck && options.overshootRounds > 0 && offSide != 0 && u.rows() > 1) {
+      a = overshootCheck(c, b, std::move(a), sigma, k, lr);
+    }
     rep.levelReports.push_back(lr);
     if (k == levels) {
       // E_δ (§8.1) at the finest level's valid offset points: there b − A·w = t − f_M(c) exactly, so

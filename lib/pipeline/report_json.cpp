@@ -57,6 +57,7 @@ void addFitReport(Json& w, const FitReport& rep) {
          {{"inside", l.anchorsInside}, {"outside", l.anchorsOutside}, {"skipped", l.anchorsSkipped},
           {"spacing", l.anchorSpacing}}},
         {"merged_centres", l.mergedCentres},
+        {"overshoot", {{"sites", l.overshootSites}, {"rounds", l.overshootRounds}, {"seconds", l.secondsOvershoot}}},
         {"centres", l.centres},
         {"nonzeros", l.nonZeros},
         {"max_residual_before", l.maxResidualBefore},

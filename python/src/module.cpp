@@ -235,6 +235,7 @@ void readFitOptions(OptionReader& r, FitOptions& o) {
   r.get("side_test", o.sideTest);
   r.get("sign_anchors", o.signAnchors);
   r.get("medial_constraints", o.medialConstraints);
+  r.get("overshoot_check", o.overshootCheck);
   r.get("offset_correction", o.offsetCorrection);
   r.get("drop_zero_normal_points", o.dropZeroNormalPoints);
   r.get("level_tolerance", o.levelTolerance);
@@ -266,6 +267,7 @@ py::dict fitDefaults() {
   d["side_test"] = o.sideTest;
   d["sign_anchors"] = o.signAnchors;
   d["medial_constraints"] = o.medialConstraints;
+  d["overshoot_check"] = o.overshootCheck;
   d["offset_correction"] = o.offsetCorrection;
   d["drop_zero_normal_points"] = o.dropZeroNormalPoints;
   d["level_tolerance"] = o.levelTolerance;

@@ -117,14 +117,28 @@ TEST_SUITE("fit") {
     // The phantoms the last sessions left: wheel_29k's in a pocket between spokes (458 faces, 0.0114 from
     // the nearest sample), armadillo_43k's beside a claw and between the toes (the latter within the
     // self-check's two edges of a sample, so it passed the check).
+    // wheel_29k's phantom no longer forms with the finest level's overshoot check (docs/method.md,
+    // "Overshoot between sparse samples"), so the repair is tested there without it, and the default fit
+    // must have no phantom either.
     struct Case {
       std::string name;
       Eigen::Vector3d inPhantom;  // a point where the unrepaired field was > 0 (a section through the phantom)
+      bool overshootCheck;
     };
-    for (const Case& c : {Case{"wheel_29k", {-0.161, -0.1545, -0.0355}}, Case{"armadillo_43k", {-0.123, 0.466, 0.188}}}) {
+    for (const Case& c : {Case{"wheel_29k", {-0.161, -0.1545, -0.0355}, false},
+                          Case{"armadillo_43k", {-0.123, 0.466, 0.188}, true}}) {
       const std::string& name = c.name;
       CAPTURE(name);
       PipelineOptions o;
+      o.fit.overshootCheck = c.overshootCheck;
+      if (!c.overshootCheck) {
+        PipelineOptions defaults;
+        const PipelineResult plain = defaultFit(device, dir + "/clouds/" + name + ".ply", 0.025, defaults);
+        CHECK(plain.report.fit.levelReports.back().overshootSites > 0);
+        CHECK(plain.report.selfCheck.ok());
+        CHECK(plain.surfaces[0].topology.components == 1);
+        CHECK(plain.fields[0].value(c.inPhantom) < 0.0);
+      }
       const PipelineResult result = defaultFit(device, dir + "/clouds/" + name + ".ply", 0.025, o);
       const PhantomRepairReport& pr = result.report.phantomRepair;
       MESSAGE(name << ": " << pr.candidates << " candidate(s), " << pr.repaired << " repaired (" << pr.repairedFaces
