@@ -51,6 +51,12 @@ bool deviceRequired() {
   return env != nullptr && std::string(env) == "1";
 }
 
+const Device& openclOrReferenceDevice() {
+  static const Device ref = Device::reference();
+  const Device* d = openclTestDevice();
+  return d != nullptr ? *d : ref;
+}
+
 const Device* openclTestDevice() {
   static std::optional<Device> device;
   static bool tried = false;

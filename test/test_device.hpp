@@ -16,6 +16,9 @@ const Device* openclTestDevice();
 /// Whether DUPLEXFIT_REQUIRE_DEVICE=1 is set.
 bool deviceRequired();
 
+/// The OpenCL test device, else the reference device (for fits that run on either).
+const Device& openclOrReferenceDevice();
+
 }  // namespace duplexfit::testing
 
 /// At the top of a test case that needs the OpenCL device: binds `dev` (const Device&), or fails (CI,

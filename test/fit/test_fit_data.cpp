@@ -22,11 +22,7 @@ struct Case {
   double delta;
 };
 
-const Device& fitDevice() {
-  static const Device ref = Device::reference();
-  const Device* d = testing::openclTestDevice();
-  return d != nullptr ? *d : ref;
-}
+const Device& fitDevice() { return testing::openclOrReferenceDevice(); }
 
 FitResult fitCloud(const std::string& dir, const char* name, std::vector<double> offsets) {
   PointSet cloud = readPointCloud(dir + "/clouds/" + name + ".ply");

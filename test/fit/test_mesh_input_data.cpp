@@ -21,11 +21,7 @@ using namespace duplexfit;
 
 namespace {
 
-const Device& meshInputDevice() {
-  static const Device ref = Device::reference();
-  const Device* d = testing::openclTestDevice();
-  return d != nullptr ? *d : ref;
-}
+const Device& meshInputDevice() { return testing::openclOrReferenceDevice(); }
 
 double meanDistance(const DistanceReport& r) { return std::max(r.forward.mean, r.backward.mean); }
 

@@ -21,11 +21,7 @@ using namespace duplexfit;
 
 namespace {
 
-const Device& fitDevice() {
-  static const Device ref = Device::reference();
-  const Device* d = testing::openclTestDevice();
-  return d != nullptr ? *d : ref;
-}
+const Device& fitDevice() { return testing::openclOrReferenceDevice(); }
 
 /// The check's distance D in input units: overshootSpacings median spacings (the fit's rule, in the
 /// normalised box of side 1).

@@ -20,11 +20,7 @@ using namespace duplexfit;
 
 namespace {
 
-const Device& repairDevice() {
-  static const Device ref = Device::reference();
-  const Device* d = testing::openclTestDevice();
-  return d != nullptr ? *d : ref;
-}
+const Device& repairDevice() { return testing::openclOrReferenceDevice(); }
 
 /// n points on the sphere of radius r about the origin (Fibonacci lattice) with outward normals.
 PointSet sphere(int n, double r) {

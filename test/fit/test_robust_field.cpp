@@ -26,11 +26,7 @@ using namespace duplexfit;
 
 namespace {
 
-const Device& robustDevice() {
-  static const Device ref = Device::reference();
-  const Device* d = testing::openclTestDevice();
-  return d != nullptr ? *d : ref;
-}
+const Device& robustDevice() { return testing::openclOrReferenceDevice(); }
 
 // A solid given as a union of simple pieces, sampled area-uniformly on its boundary: each piece offers
 // candidates on its own surface, kept when outside every other piece.
