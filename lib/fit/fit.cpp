@@ -63,6 +63,8 @@ void detail::checkFitOptions(const FitOptions& o) {
   if (o.blockSize < 1 || o.blockSize > 256) bad("blockSize must be in [1, 256]");
   if (!(o.fsaiThreshold >= 0.0 && o.fsaiThreshold <= 1.0)) bad("fsaiThreshold must be in [0, 1] (--fsai-threshold)");
   if (o.fsaiMaxNeighbours < 0 || o.fsaiMaxNeighbours > 64) bad("fsaiMaxNeighbours must be in [0, 64]");
+  if (!(o.overshootSpacings > 0.0 && o.overshootSpacings <= 100.0)) bad("overshootSpacings must be in (0, 100] (--overshoot-spacings)");
+  if (o.overshootRounds < 0 || o.overshootRounds > 16) bad("overshootRounds must be in [0, 16] (--overshoot-rounds)");
   // 0 iterations would leave every level's weights at 0: empty meshes that look like a finished fit.
   if (o.solver.maxIterations < 1) bad("solver.maxIterations must be at least 1 (--max-iterations)");
   for (double d : o.offsets) {
@@ -422,10 +424,11 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   // Overshoot check at the finest level (FitOptions::overshootCheck, docs/method.md "Overshoot between
   // sparse samples"): level M's bumps can add up to solid between sparse samples (a bulb over a sharp
   // ridge, a bridge across a narrow gap) where no constraint reaches: the off-surface points sit σ_M/10
-  // off the surface and the sign anchors start 3 spacings away. With `evaluator` holding levels 1 … M − 1,
-  // f_M = f_{M−1} + level M is evaluated at p + s·D·ν (D = overshootSpacings median spacings, s each
-  // off-surface side); where it is less than D/2 on its side and no other input point lies within D (so
-  // the surface is about D away), the point joins level M with target s·D and the level is solved again.
+  // off the surface and the sign anchors start 3 spacings away. Called with level M solved and appended to
+  // `evaluator`: f_M is evaluated at p + s·D·ν (D = overshootSpacings median spacings, s each off-surface
+  // side); where it is less than D/2 on its side and no other input point lies within D (so the surface is
+  // about D away), the point joins level M with target s·D, the level is solved again and `fitted` and
+  // `evaluator` get the new level M. Returns the level's matrix.
   auto overshootCheck = [&](detail::LevelConstraints& c, Eigen::VectorXd& b, CsrMatrix a, double sigma, int k,
                             LevelWork& lr) -> CsrMatrix {
     const auto t0 = Clock::now();

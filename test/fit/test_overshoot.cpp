@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "data.hpp"
+#include "duplexfit/error.hpp"
 #include "duplexfit/fit.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/neighbors.hpp"
@@ -68,6 +69,21 @@ TEST_SUITE("fit") {
     CHECK(on.field.levels().back().centres == off.field.levels().back().centres);
     CHECK(on.field.levels().back().weights == off.field.levels().back().weights);
     CHECK(overshooting(on, cloud, checkDistance(cloud, FitOptions{})) == 0);
+  }
+
+  TEST_CASE("overshoot check: its distance and rounds out of range are refused") {
+    Points normals;
+    const Points p = testing::fibonacciSphere(200, 0.4, &normals);
+    const PointSet cloud(p, normals);
+    for (const double spacings : {0.0, -1.0, std::nan(""), 1e9}) {
+      CAPTURE(spacings);
+      FitOptions o;
+      o.overshootSpacings = spacings;
+      CHECK_THROWS_AS(fit(Device::reference(), cloud, o), InvalidArgument);
+    }
+    FitOptions o;
+    o.overshootRounds = -1;
+    CHECK_THROWS_AS(fit(Device::reference(), cloud, o), InvalidArgument);
   }
 
   TEST_CASE("overshoot check: wheel_29k's points off its sparsely sampled ridges stay outside") {
