@@ -20,6 +20,7 @@
 #include "fit/constraints.hpp"
 #include "fit/fit_detail.hpp"
 #include "fit/hierarchy.hpp"
+#include "fit/partition.hpp"
 #include "spatial/disk_distance.hpp"
 #include "spatial/morton.hpp"
 
@@ -295,8 +296,26 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   Normalization norm;
   norm.centre = bounds.center();
   norm.scale = 1.0 / side;
-  const Points u = (norm.scale * (points.positions().rowwise() - norm.centre.transpose())).eval();
-  const Points nu = options.normalsInward ? points.normals() : Points(-points.normals());
+  // The points in the Morton order of their 63-bit keys over the hierarchy box (ties in the cloud's order; the
+  // distributed fit orders each block's points so, and one rank reproduces this fit): every per-point pass
+  // of the fit (the winding number, each level's cell centroids, the constraints' validity and medial
+  // searches, the overshoot check, E_0) then reads the k-d tree, the field and the point arrays in space
+  // order, whatever order the cloud came in (Poisson-disk and uniform samples, many tools' output, are in
+  // random order). Nothing the fit returns refers to a point by its index.
+  Points u, nu;
+  {
+    const Points normalised = (norm.scale * (points.positions().rowwise() - norm.centre.transpose())).eval();
+    const std::vector<Eigen::Index> order = detail::mortonOrder(normalised, detail::hierarchyBox(normalised));
+    const Points& normals = points.normals();
+    const double toward = options.normalsInward ? 1.0 : -1.0;
+    u.resize(normalised.rows(), 3);
+    nu.resize(normalised.rows(), 3);
+    for (Eigen::Index r = 0; r < normalised.rows(); ++r) {
+      const Eigen::Index i = order[static_cast<std::size_t>(r)];
+      u.row(r) = normalised.row(i);
+      nu.row(r) = toward * normals.row(i);
+    }
+  }
 
   rep.smoothing = options.smoothing;
   // Offsets in input units (report) and normalised units (fit).
@@ -438,15 +457,13 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     }
     const double d = options.overshootSpacings * spacing;
     if (!(d > 0.0) || !std::isfinite(d)) return a;
-    // The candidates in the Morton order of their points: in the cloud's order (fandisk_550k's is random)
-    // the evaluation took three times as long, its centres read from all over the field.
-    const std::vector<std::uint32_t> order = detail::processingOrder(u, 2);
+    // The candidates in the Morton order of their points (u's order): in the cloud's order (fandisk_550k's is
+    // random) the evaluation took three times as long, its centres read from all over the field.
     std::vector<Eigen::Index> source;
     std::vector<double> toward;  // −1 outside, +1 inside
     for (const double s : {-1.0, 1.0}) {
       if (!(offSide == 2 || (offSide == -1 && s < 0.0) || (offSide == 1 && s > 0.0))) continue;
-      for (Eigen::Index r = 0; r < u.rows(); ++r) {
-        const Eigen::Index i = order.empty() ? r : static_cast<Eigen::Index>(order[static_cast<std::size_t>(r)]);
+      for (Eigen::Index i = 0; i < u.rows(); ++i) {
         if (nu.row(i).squaredNorm() == 0.0) continue;
         source.push_back(i);
         toward.push_back(s);
@@ -711,17 +728,17 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   // E_0 (§8.1): max |f| at every input point. Those that are level-M centres have it from the final
   // residual; the others (merged away, dropped, or all of them after an early stop) are evaluated.
   report(interrupter, {FitStage::Errors, 0, levels, 0, 0.0, ""}, &work);
-  Points rest;
+  Points rest;  // normalised, rows of u
   if (finestIsInput) {
     rest.resize(static_cast<Eigen::Index>(notCentres.size()), 3);
-    for (std::size_t k = 0; k < notCentres.size(); ++k) rest.row(static_cast<Eigen::Index>(k)) = points.positions().row(notCentres[k]);
+    for (std::size_t k = 0; k < notCentres.size(); ++k) rest.row(static_cast<Eigen::Index>(k)) = u.row(notCentres[k]);
     rep.e0 = e0Centres;
   } else {
-    rest = points.positions();
+    rest = u;
   }
   if (rest.rows() > 0) {
-    const Eigen::VectorXd f0 = evaluator->evaluate(rest).values;
-    rep.e0 = std::max(rep.e0, f0.cwiseAbs().maxCoeff());
+    const Eigen::VectorXd f0 = evaluator->evaluateNormalized(rest);
+    rep.e0 = std::max(rep.e0, f0.cwiseAbs().maxCoeff() / norm.scale);
   }
   if (rep.eDelta.size() != deltas.size()) rep.eDelta.assign(deltas.size(), 0.0);  // stopped early
   rep.assembly = levelsOnDevice == 0 ? "host" : levelsOnHost == 0 ? "device" : "host and device";

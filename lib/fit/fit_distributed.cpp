@@ -144,31 +144,26 @@ DistributedPoints partitionPoints(Communicator& comm, const PointSet& myRows, st
 
   PointSet set = PointSet::fromNormalized(std::move(owned.positions), std::move(owned.normals));
   set.mergeDuplicates();  // exact duplicates share a key, so a rank merges all of its own
-  // Block by block, file order within a block (stable): the order of the ranks' points if each block were
-  // a rank, so that B blocks in one process reproduce B ranks.
-  std::vector<int> blockOf(set.size());
+  // In Morton order (detail::mortonOrder, ties in file order), so block by block (a block is a key range):
+  // the order of the ranks' points if each block were a rank, so that B blocks in one process reproduce B
+  // ranks, and with one rank the serial fit's own order (it sorts its points so).
   std::vector<Eigen::Index> count(static_cast<std::size_t>(localBlocks) + 1, 0);
   {
     const Points un = normalise(set.positions(), frame.norm);
-    for (Eigen::Index i = 0; i < un.rows(); ++i) {
+    const std::vector<Eigen::Index> order = detail::mortonOrder(un, frame.box);
+    Points p(static_cast<Eigen::Index>(set.size()), 3), nrm(static_cast<Eigen::Index>(set.size()), 3);
+    for (Eigen::Index r = 0; r < un.rows(); ++r) {
+      const Eigen::Index i = order[static_cast<std::size_t>(r)];
       const int b = detail::ownerOfKey(out.blockSplitters, detail::mortonKey63(un.row(i).transpose(), frame.box)) - out.firstBlock;
       if (b < 0 || b >= localBlocks) throw InvalidArgument("distributed fit: a point outside its rank's blocks (internal error)");
-      blockOf[static_cast<std::size_t>(i)] = b;
       ++count[static_cast<std::size_t>(b) + 1];
-    }
-  }
-  for (int b = 0; b < localBlocks; ++b) count[static_cast<std::size_t>(b) + 1] += count[static_cast<std::size_t>(b)];
-  out.blockRows = count;
-  if (localBlocks > 1) {
-    Points p(static_cast<Eigen::Index>(set.size()), 3), nrm(static_cast<Eigen::Index>(set.size()), 3);
-    std::vector<Eigen::Index> next(count.begin(), count.end() - 1);
-    for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(set.size()); ++i) {
-      const Eigen::Index to = next[static_cast<std::size_t>(blockOf[static_cast<std::size_t>(i)])]++;
-      p.row(to) = set.positions().row(i);
-      nrm.row(to) = set.normals().row(i);
+      p.row(r) = set.positions().row(i);
+      nrm.row(r) = set.normals().row(i);
     }
     set = PointSet::fromNormalized(std::move(p), std::move(nrm));
   }
+  for (int b = 0; b < localBlocks; ++b) count[static_cast<std::size_t>(b) + 1] += count[static_cast<std::size_t>(b)];
+  out.blockRows = count;
   out.points = std::move(set);
   report.rankReports.clear();
   for (int b = 0; b < localBlocks; ++b) {

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <unordered_set>
+#include <utility>
 
 #include "duplexfit/error.hpp"
 
@@ -69,6 +70,17 @@ std::uint64_t mortonKey63(const Eigen::Vector3d& p, const HierarchyBox& box) noe
     key |= spread3(c) << a;
   }
   return key;
+}
+
+std::vector<Eigen::Index> mortonOrder(const Points& positions, const HierarchyBox& box) {
+  std::vector<std::pair<std::uint64_t, Eigen::Index>> keyed(static_cast<std::size_t>(positions.rows()));
+  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
+    keyed[static_cast<std::size_t>(i)] = {mortonKey63(positions.row(i).transpose(), box), i};
+  }
+  std::sort(keyed.begin(), keyed.end());  // (key, row): ties in row order
+  std::vector<Eigen::Index> order(keyed.size());
+  for (std::size_t r = 0; r < keyed.size(); ++r) order[r] = keyed[r].second;
+  return order;
 }
 
 std::vector<std::uint64_t> balancedSplitters(Communicator& comm, const std::vector<std::uint64_t>& keys,

@@ -17,6 +17,10 @@ namespace duplexfit::detail {
 /// into the box.
 std::uint64_t mortonKey63(const Eigen::Vector3d& p, const HierarchyBox& box) noexcept;
 
+/// The rows of `positions` (normalised) in the order of their mortonKey63 over `box`, ties in row order: the
+/// order in which the fit and each block of the distributed fit process their points.
+std::vector<Eigen::Index> mortonOrder(const Points& positions, const HierarchyBox& box);
+
 /// B + 1 splitters 0 = s_0 ≤ s_1 ≤ … ≤ s_B = 2^63 for B = `parts` (0: the number of ranks P): part b owns
 /// the keys [s_b, s_{b+1}). Chosen from a histogram of the keys' top `histogramBits` bits (reduced over the
 /// ranks) so that each part's count is within one histogram bucket of N/B.
