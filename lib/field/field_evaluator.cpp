@@ -14,6 +14,7 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/field.hpp"
 #include "linalg/storage.hpp"
+#include "spatial/morton.hpp"
 
 namespace duplexfit {
 
@@ -206,8 +207,8 @@ void evalReference(const detail::EvaluatorImpl& e, const std::vector<T>& params,
   }
 }
 
-// Evaluates normalised queries (#Q×3) into a #Q×k row-major array of normalised results.
-std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u, int k) {
+// Evaluates normalised queries (#Q×3), in their order, into a #Q×k row-major array of normalised results.
+std::vector<double> evaluateRawInOrder(const detail::EvaluatorImpl& e, const Points& u, int k) {
   const auto nq = static_cast<std::size_t>(u.rows());
   std::vector<double> result(nq * static_cast<std::size_t>(k));
   if (nq == 0) return result;
@@ -265,6 +266,55 @@ std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u,
       }
     }
   });
+  return result;
+}
+
+/// Queries in a scattered order (consecutive ones far apart: a cloud in random order, as Poisson-disk and
+/// uniform samples are) read each level's centres from all over the field: on fandisk_550k's field (2.2M
+/// centres) its 1.8M zero-mesh vertices took 2.1 µs a point shuffled against 0.65 µs in the mesh's order. Such
+/// a batch is evaluated in Morton order and the results put back in place. Judged on its first kProbe
+/// queries: sorted when the median step between consecutive ones exceeds kScattered times the median step of
+/// the same queries in Morton order (a mesh's, a grid's or a scan's order is about as coherent as that).
+constexpr Eigen::Index kSortMinQueries = Eigen::Index{1} << 15;
+constexpr Eigen::Index kProbe = 4096;
+constexpr double kScattered = 4.0;
+
+double medianStep(const Points& p, const std::vector<std::uint32_t>& order) {
+  std::vector<double> step;
+  step.reserve(static_cast<std::size_t>(p.rows()));
+  for (Eigen::Index r = 1; r < p.rows(); ++r) {
+    const auto a = order.empty() ? r - 1 : static_cast<Eigen::Index>(order[static_cast<std::size_t>(r - 1)]);
+    const auto b = order.empty() ? r : static_cast<Eigen::Index>(order[static_cast<std::size_t>(r)]);
+    step.push_back((p.row(b) - p.row(a)).squaredNorm());
+  }
+  if (step.empty()) return 0.0;
+  std::nth_element(step.begin(), step.begin() + static_cast<std::ptrdiff_t>(step.size() / 2), step.end());
+  return std::sqrt(step[step.size() / 2]);
+}
+
+/// The order to evaluate u in: empty for its own, else a Morton order (see kScattered).
+std::vector<std::uint32_t> evaluationOrder(const Points& u) {
+  if (u.rows() < kSortMinQueries || !u.allFinite()) return {};
+  const Points probe = u.topRows(kProbe);
+  const double own = medianStep(probe, {}), sorted = medianStep(probe, detail::processingOrder(probe, 2));
+  if (!(own > kScattered * sorted)) return {};
+  return detail::processingOrder(u, 2);
+}
+
+// Evaluates normalised queries (#Q×3) into a #Q×k row-major array of normalised results, in Morton order
+// where they come scattered (evaluationOrder).
+std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u, int k) {
+  const std::vector<std::uint32_t> order = evaluationOrder(u);
+  if (order.empty()) return evaluateRawInOrder(e, u, k);
+  Points sorted(u.rows(), 3);
+  for (Eigen::Index r = 0; r < u.rows(); ++r) sorted.row(r) = u.row(static_cast<Eigen::Index>(order[static_cast<std::size_t>(r)]));
+  const std::vector<double> s = evaluateRawInOrder(e, sorted, k);
+  std::vector<double> result(s.size());
+  const auto width = static_cast<std::size_t>(k);
+  for (std::size_t r = 0; r < order.size(); ++r) {
+    std::copy_n(s.begin() + static_cast<std::ptrdiff_t>(width * r), width,
+                result.begin() + static_cast<std::ptrdiff_t>(width * order[r]));
+  }
   return result;
 }
 
