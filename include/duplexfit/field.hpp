@@ -108,6 +108,11 @@ class FieldEvaluator {
   /// grid are uploaded; evaluation then sums it too. Results are identical to an evaluator built from
   /// the whole field at once. @throws DeviceError (buffers above the device's max allocation)
   void appendLevel(const FieldLevel& level);
+  /// Removes the finest level: evaluation then sums the levels before it, with results identical to an
+  /// evaluator built from those alone, and appendLevel can add another in its place (the fit's overshoot
+  /// check solves its finest level again). Nothing already on the device is uploaded again.
+  /// @throws InvalidArgument when there is no level
+  void dropLastLevel();
   /// Levels summed so far.
   int levelCount() const noexcept;
   FieldEvaluator(FieldEvaluator&&) noexcept;

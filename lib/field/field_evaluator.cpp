@@ -397,6 +397,37 @@ void FieldEvaluator::appendLevel(const FieldLevel& level) {
   sync(*impl_, 2.0);
 }
 
+void FieldEvaluator::dropLastLevel() {
+  auto& e = *impl_;
+  if (e.levels == 0) throw InvalidArgument("FieldEvaluator::dropLastLevel: there is no level to drop");
+  const std::size_t last = e.levels - 1;
+  const std::size_t cellBase = e.dims[5 * last + 3], centreBase = e.dims[5 * last + 4];
+  e.params.resize(7 * last);
+  e.dims.resize(5 * last);
+  e.cellStart.resize(cellBase);
+  e.centres = centreBase;
+  if (e.soa) {
+    e.soaF.resize(4 * centreBase);
+    if (e.dlevel.back() != kFloatLevel) e.soaD.resize(e.dlevel.back());
+    e.dlevel.pop_back();
+  } else {
+    e.packed.resize(4 * centreBase);
+  }
+  e.paramsF.resize(std::min(e.paramsF.size(), e.params.size()));
+  e.packedF.resize(std::min(e.packedF.size(), e.packed.size()));
+  --e.levels;
+  // The device copies keep their buffers; what lies past the host arrays now is written again when a
+  // level is appended (syncArray writes from `uploaded` on).
+  const auto clip = [](detail::EvaluatorImpl::DeviceArray& a, std::size_t size) { a.uploaded = std::min(a.uploaded, size); };
+  const bool f = e.precision == Precision::Float;
+  clip(e.paramsBuf, f ? e.paramsF.size() : e.params.size());
+  clip(e.centresBuf, e.soa ? e.soaF.size() : f ? e.packedF.size() : e.packed.size());
+  clip(e.dlevelBuf, e.dlevel.size());
+  clip(e.dcentresBuf, e.soaD.size());
+  clip(e.dimsBuf, e.dims.size());
+  clip(e.cellStartBuf, e.cellStart.size());
+}
+
 int FieldEvaluator::levelCount() const noexcept { return static_cast<int>(impl_->levels); }
 
 FieldEvaluator::FieldEvaluator(FieldEvaluator&&) noexcept = default;

@@ -73,6 +73,51 @@ void detail::checkFitOptions(const FitOptions& o) {
   }
 }
 
+detail::OvershootCandidates detail::overshootCandidates(const Points& points, const Points& normals,
+                                                        const std::vector<Eigen::Index>& rows, double d, int offSide) {
+  OvershootCandidates c;
+  for (const double s : {-1.0, 1.0}) {
+    if (!(offSide == 2 || (offSide == -1 && s < 0.0) || (offSide == 1 && s > 0.0))) continue;
+    for (const Eigen::Index i : rows) {
+      if (normals.row(i).squaredNorm() == 0.0) continue;
+      c.source.push_back(i);
+      c.toward.push_back(s);
+    }
+  }
+  c.q.resize(static_cast<Eigen::Index>(c.source.size()), 3);
+  for (std::size_t r = 0; r < c.source.size(); ++r) {
+    c.q.row(static_cast<Eigen::Index>(r)) = points.row(c.source[r]) + c.toward[r] * d * normals.row(c.source[r]);
+  }
+  c.added.assign(c.source.size(), 0);
+  return c;
+}
+
+std::vector<std::size_t> detail::overshootSites(const FieldEvaluator& evaluator, OvershootCandidates& c,
+                                                const NeighborIndex& index, double d) {
+  std::vector<std::size_t> sites;
+  if (c.source.empty()) return sites;
+  const Eigen::VectorXd f = evaluator.evaluateNormalized(c.q);
+  std::vector<std::size_t> failing;
+  for (std::size_t r = 0; r < c.source.size(); ++r) {
+    if (!c.added[r] && c.toward[r] * f[static_cast<Eigen::Index>(r)] < 0.5 * d) failing.push_back(r);
+  }
+  if (failing.empty()) return sites;
+  Points fq(static_cast<Eigen::Index>(failing.size()), 3);
+  std::vector<Index> exclude(failing.size());
+  for (std::size_t j = 0; j < failing.size(); ++j) {
+    fq.row(static_cast<Eigen::Index>(j)) = c.q.row(static_cast<Eigen::Index>(failing[j]));
+    exclude[j] = static_cast<Index>(c.source[failing[j]]);
+  }
+  const NeighborLists other = index.anyOtherWithin(fq, exclude, std::vector<double>(failing.size(), d));
+  for (std::size_t j = 0; j < failing.size(); ++j) {
+    if (other.count(j) == 0) {
+      sites.push_back(failing[j]);
+      c.added[failing[j]] = 1;
+    }
+  }
+  return sites;
+}
+
 // The typical sample spacing: the square root of the median point area.
 double detail::medianSpacing(const Eigen::VectorXd& areas) {
   if (areas.size() == 0) return 0.0;
@@ -457,71 +502,38 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     }
     const double d = options.overshootSpacings * spacing;
     if (!(d > 0.0) || !std::isfinite(d)) return a;
-    // The candidates in the Morton order of their points (u's order): in the cloud's order (fandisk_550k's is
-    // random) the evaluation took three times as long, its centres read from all over the field.
-    std::vector<Eigen::Index> source;
-    std::vector<double> toward;  // −1 outside, +1 inside
-    for (const double s : {-1.0, 1.0}) {
-      if (!(offSide == 2 || (offSide == -1 && s < 0.0) || (offSide == 1 && s > 0.0))) continue;
-      for (Eigen::Index i = 0; i < u.rows(); ++i) {
-        if (nu.row(i).squaredNorm() == 0.0) continue;
-        source.push_back(i);
-        toward.push_back(s);
-      }
-    }
-    Points q(static_cast<Eigen::Index>(source.size()), 3);
-    for (std::size_t r = 0; r < source.size(); ++r) {
-      q.row(static_cast<Eigen::Index>(r)) = u.row(source[r]) + toward[r] * d * nu.row(source[r]);
-    }
-    std::vector<char> added(source.size(), 0);
+    // The candidates in the Morton order of their points (u's order, §4.7): in the cloud's order
+    // (fandisk_550k's is random) the evaluation took three times as long.
+    std::vector<Eigen::Index> rows(static_cast<std::size_t>(u.rows()));
+    for (std::size_t i = 0; i < rows.size(); ++i) rows[i] = static_cast<Eigen::Index>(i);
+    detail::OvershootCandidates cand = detail::overshootCandidates(u, nu, rows, d, offSide);
+    if (!inputIndex) inputIndex = std::make_unique<NeighborIndex>(u);
     double assembly = 0.0, solve = 0.0;
     for (int round = 0; round < options.overshootRounds; ++round) {
       // f_M at every candidate: `evaluator` holds level M as solved last.
-      const Eigen::VectorXd f = evaluator->evaluateNormalized(q);
-      std::vector<std::size_t> failing;
-      for (std::size_t r = 0; r < source.size(); ++r) {
-        if (!added[r] && toward[r] * f[static_cast<Eigen::Index>(r)] < 0.5 * d) failing.push_back(r);
-      }
-      if (failing.empty()) break;
-      if (!inputIndex) inputIndex = std::make_unique<NeighborIndex>(u);
-      Points fq(static_cast<Eigen::Index>(failing.size()), 3);
-      std::vector<Index> exclude(failing.size());
-      for (std::size_t j = 0; j < failing.size(); ++j) {
-        fq.row(static_cast<Eigen::Index>(j)) = q.row(static_cast<Eigen::Index>(failing[j]));
-        exclude[j] = static_cast<Index>(source[failing[j]]);
-      }
-      const NeighborLists other = inputIndex->anyOtherWithin(fq, exclude, std::vector<double>(failing.size(), d));
-      std::vector<std::size_t> sites;
-      for (std::size_t j = 0; j < failing.size(); ++j) {
-        if (other.count(j) == 0) sites.push_back(failing[j]);
-      }
+      const std::vector<std::size_t> sites = detail::overshootSites(*evaluator, cand, *inputIndex, d);
       if (sites.empty()) break;
-      // Their right-hand sides need f_{M−1} = f_M − level M's own terms (an evaluator of level M alone).
+      // Their right-hand sides against f_{M−1}: level M leaves the evaluator until it is solved again.
       const Eigen::Index base = c.centres.rows(), extra = static_cast<Eigen::Index>(sites.size());
       Points at(extra, 3);
-      for (Eigen::Index j = 0; j < extra; ++j) at.row(j) = q.row(static_cast<Eigen::Index>(sites[static_cast<std::size_t>(j)]));
-      FieldEvaluator own(device, norm, 0.0, options.precision);
-      own.appendLevel(fitted.back());
-      const Eigen::VectorXd g = own.evaluateNormalized(at);
+      for (Eigen::Index j = 0; j < extra; ++j) at.row(j) = cand.q.row(static_cast<Eigen::Index>(sites[static_cast<std::size_t>(j)]));
+      evaluator->dropLastLevel();
+      const Eigen::VectorXd g = evaluator->evaluateNormalized(at);
       c.centres.conservativeResize(base + extra, 3);
       c.targets.conservativeResize(base + extra);
       b.conservativeResize(base + extra);
       for (Eigen::Index j = 0; j < extra; ++j) {
-        const std::size_t r = sites[static_cast<std::size_t>(j)];
+        const double target = cand.toward[sites[static_cast<std::size_t>(j)]] * d;
         c.centres.row(base + j) = at.row(j);
-        c.targets[base + j] = toward[r] * d;
-        b[base + j] = toward[r] * d - (f[static_cast<Eigen::Index>(r)] - g[j]);
-        added[r] = 1;
+        c.targets[base + j] = target;
+        b[base + j] = target - g[j];
       }
       if (c.sources.size() == static_cast<std::size_t>(base)) c.sources.resize(static_cast<std::size_t>(base + extra), -1);
       assembly += lr.secondsAssembly;
       solve += lr.secondsSolve;
       a = solveLevel(c.centres, sigma, options.smoothing * k, b, k, lr);
       fitted.back() = FieldLevel{sigma, c.centres, std::move(lr.weights)};
-      // The evaluator again, with the new level M (an evaluator cannot drop a level).
-      auto rebuilt = std::make_shared<FieldEvaluator>(device, norm, -1.0, options.precision);
-      for (const FieldLevel& level : fitted) rebuilt->appendLevel(level);
-      evaluator = std::move(rebuilt);
+      evaluator->appendLevel(fitted.back());
       lr.overshootSites += sites.size();
       lr.overshootRounds = round + 1;
     }

@@ -8,9 +8,11 @@
 
 #include <Eigen/Core>
 
+#include "duplexfit/field.hpp"
 #include "duplexfit/fit.hpp"
 #include "duplexfit/interrupter.hpp"
 #include "duplexfit/linalg.hpp"
+#include "duplexfit/neighbors.hpp"
 #include "fit/constraints.hpp"
 
 namespace duplexfit::detail {
@@ -105,6 +107,23 @@ class LevelInterrupter final : public Interrupter {
   double residual_ = 1.0;
 };
 
+
+/// The overshoot check's candidates (docs/method.md, "Overshoot between sparse samples"): q = p + s·D·ν for
+/// each listed point p with a non-zero normal ν (inward) and each off-surface side s (−1 outside, +1 inside)
+/// that `offSide` has (−1, 1 or 2 both), in the listed order within each side.
+struct OvershootCandidates {
+  Points q;
+  std::vector<Eigen::Index> source;  ///< the row of q's point
+  std::vector<double> toward;        ///< s
+  std::vector<char> added;           ///< q joined the level in an earlier round
+};
+OvershootCandidates overshootCandidates(const Points& points, const Points& normals, const std::vector<Eigen::Index>& rows,
+                                        double d, int offSide);
+/// One round of the check with the finest level solved (in `evaluator`): the candidates not added yet where
+/// s·f < D/2 and no point of `index` other than their own lies within D (the space there is known empty),
+/// now marked added. `index` is over the points the candidates' rows refer to.
+std::vector<std::size_t> overshootSites(const FieldEvaluator& evaluator, OvershootCandidates& c, const NeighborIndex& index,
+                                        double d);
 
 /// @throws InvalidArgument naming the first bad field of `o`.
 void checkFitOptions(const FitOptions& o);

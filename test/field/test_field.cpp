@@ -380,6 +380,46 @@ TEST_SUITE("field") {
     });
   }
 
+  TEST_CASE("field: dropLastLevel leaves the evaluator of the levels before it; a level appended after it counts") {
+    // Down from four levels to none, each state bit for bit a fresh evaluator of the same levels (the
+    // coarse levels summed in double on a CPU device included), then a different finest level in place of
+    // the dropped one, as the fit's overshoot check does.
+    const ImplicitField base = randomField(13);
+    std::vector<FieldLevel> levels = base.levels();
+    FieldLevel fourth;
+    fourth.sigma = 0.08;
+    fourth.centres = base.levels()[2].centres.topRows(400) * 0.95;
+    fourth.weights = base.levels()[2].weights.head(400);
+    levels.push_back(fourth);
+    const ImplicitField f(base.normalization(), base.f0(), levels, base.offsets(), base.bounds());
+    std::vector<FieldLevel> other = levels;
+    other[3].weights *= -0.5;
+    other[3].centres = other[3].centres.topRows(350).eval();
+    other[3].weights = other[3].weights.head(350).eval();
+    const ImplicitField g(base.normalization(), base.f0(), other, base.offsets(), base.bounds());
+    const Points q = randomQueries(f, 901, 14);
+    forEachDeviceAndPrecision([&](const Device& d, Precision p) {
+      FieldEvaluator e(d, f, p);
+      for (int k = 3; k >= 0; --k) {
+        CAPTURE(k);
+        e.dropLastLevel();
+        CHECK(e.levelCount() == k);
+        const FieldEvaluator fresh(d, f, p, k);
+        const FieldSamples a = e.evaluate(q, FieldDerivatives::Gradient);
+        const FieldSamples b = fresh.evaluate(q, FieldDerivatives::Gradient);
+        CHECK(a.values == b.values);
+        CHECK(a.gradients == b.gradients);
+      }
+      CHECK_THROWS_AS(e.dropLastLevel(), InvalidArgument);
+      for (int k = 0; k < 4; ++k) e.appendLevel(f.levels()[static_cast<std::size_t>(k)]);
+      e.dropLastLevel();
+      e.appendLevel(other[3]);
+      const FieldEvaluator fresh(d, g, p);
+      CHECK(e.evaluate(q).values == fresh.evaluate(q).values);
+      CHECK(e.evaluateNormalized(q * 0.1) == fresh.evaluateNormalized(q * 0.1));
+    });
+  }
+
   TEST_CASE("field: save and load round trip evaluates identically; corrupt files are rejected") {
     const ImplicitField f = randomField(7);
     std::stringstream buffer;
