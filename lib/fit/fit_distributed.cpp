@@ -358,8 +358,20 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       blockOfRow[static_cast<std::size_t>(i)] = j;
     }
   }
+  // The overshoot check at the finest level (docs/method.md, "Overshoot between sparse samples"), as fit()
+  // runs it: after level M is solved and gathered, each rank tests the candidates of its own points against
+  // the whole field; the sites of all ranks join level M, which is solved again (every unit, with the sites
+  // it owns and, in local mode, those within its halo). With one rank and one block this is fit()'s check.
+  Points overshootAt;                 // every rank's sites so far, in rank order (normalised)
+  Eigen::VectorXd overshootTargets;   // s·D
+  std::vector<char> overshootAdded;   // per owned point and side: its candidate is a site already
+  int overshootRound = 0;
+  double overshootSeconds = 0.0;
   for (int k = 1; k <= levels; ++k) {
     const auto levelStart = Clock::now();
+    if (k == levels) {
+      for (Points& p : finestOffsetPoints) p.resize(0, 3);  // level M again after an overshoot round
+    }
     const std::uint64_t bytesBefore = bytes;
     LevelReport lr;
     lr.level = k;
@@ -385,6 +397,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
                                 : (dist.halo + 1.0) * sigma + 2.0 * maxOffset + cellDiag;
     Points lp, ln;
     std::vector<int> rowBlock;  // per row of lp: its local block, −1 for another rank's point
+    Eigen::Index firstOwnRow = 0;  // gathered level M: this rank's first row in lp
     if (gathered) {
       if (k == levels) {
         // The whole cloud in the ranks' id order (the file order with one rank).
@@ -398,6 +411,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
         ln.resize(total, 3);
         std::size_t at = 0;
         Eigen::Index row = 0;
+        for (int r = 0; r < me; ++r) firstOwnRow += rows[static_cast<std::size_t>(r)];
         for (const auto r : rows) {
           const Eigen::Map<const Points> p(pos.data() + at, r, 3), q(nrm.data() + at, r, 3);
           lp.middleRows(row, r) = p;
@@ -546,6 +560,41 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       if (k <= lastAnchorLevel && (gathered || parts == 1)) {
         detail::addLevelAnchors(c, sigma, spacing, deltas, anchorBox, k, cloud, cloudNormals, *winding, *cloudIndex, lr,
                                 norm.scale);
+      }
+      if (k == levels && overshootAt.rows() > 0) {
+        // The overshoot sites this unit's system holds: all of them on a gathered level, else those it owns
+        // (by key) and, in local mode, those within g·σ of one of its owned centres.
+        std::vector<Eigen::Index> take;
+        if (gathered) {
+          for (Eigen::Index i = 0; i < overshootAt.rows(); ++i) take.push_back(i);
+        } else {
+          std::vector<Eigen::Index> owned, others;
+          for (Eigen::Index r = 0; r < systemCentres; ++r) {
+            if (ownedPoint[static_cast<std::size_t>(c.sources[static_cast<std::size_t>(r)])] != 0) owned.push_back(r);
+          }
+          for (Eigen::Index i = 0; i < overshootAt.rows(); ++i) {
+            if (detail::ownerOfKey(blockSplitters, detail::mortonKey63(overshootAt.row(i).transpose(), box)) == block) {
+              take.push_back(i);
+            } else if (!exact) {
+              others.push_back(i);
+            }
+          }
+          if (!others.empty() && !owned.empty()) {
+            const NeighborLists near = NeighborIndex(rowsOf(c.centres, owned)).nearestWithin(rowsOf(overshootAt, others), dist.halo * sigma);
+            for (std::size_t o = 0; o < others.size(); ++o) {
+              if (near.offsets[o + 1] > near.offsets[o]) take.push_back(others[o]);
+            }
+            std::sort(take.begin(), take.end());
+          }
+        }
+        const Eigen::Index base = c.centres.rows(), extra = static_cast<Eigen::Index>(take.size());
+        c.centres.conservativeResize(base + extra, 3);
+        c.targets.conservativeResize(base + extra);
+        for (Eigen::Index x = 0; x < extra; ++x) {
+          c.centres.row(base + x) = overshootAt.row(take[static_cast<std::size_t>(x)]);
+          c.targets[base + x] = overshootTargets[take[static_cast<std::size_t>(x)]];
+        }
+        if (c.sources.size() == static_cast<std::size_t>(base)) c.sources.resize(static_cast<std::size_t>(base + extra), -1);
       }
       lr.offsetMedial = c.offsetMedial;
       lr.offSurfaceMedial = c.offSurfaceMedial;
@@ -707,6 +756,68 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
     lr.solve.maxResidual = comm.allreduce(lr.solve.maxResidual, ReduceOp::Max);
     fitted.push_back(std::move(fl));
     evaluator->appendLevel(fitted.back());
+    if (k == levels && options.overshootCheck && overshootRound < options.overshootRounds && offSide != 0 &&
+        rep.inputPoints > 1) {
+      // This rank's candidates: its own points (lp's rows it owns), tested against its data (its points and
+      // the halo, which reaches beyond D, or the whole cloud when gathered).
+      const auto t0 = Clock::now();
+      std::vector<Eigen::Index> ownRows;
+      for (Eigen::Index r = 0; r < lp.rows(); ++r) {
+        if (gathered ? (r >= firstOwnRow && r < firstOwnRow + u.rows()) : rowBlock[static_cast<std::size_t>(r)] >= 0) ownRows.push_back(r);
+      }
+      const NeighborIndex dataIndex(lp);
+      double checkSpacing = parts == 1 ? spacing : 0.0;  // one block: the winding number's, as fit()
+      if (!(checkSpacing > 0.0)) {
+        // The median point area over all ranks' points (a stride sample of at most about 2^18 of them).
+        const Eigen::VectorXd areas = estimatePointAreas(lp, Points(-ln), WindingOptions().areaNeighbors, dataIndex);
+        const auto total = static_cast<std::int64_t>(rep.inputPoints);
+        const std::int64_t stride = std::max<std::int64_t>(1, total >> 18);
+        std::vector<double> sample;
+        for (std::size_t i = 0; i < ownRows.size(); ++i) {
+          if ((ids[i] % stride) == 0) sample.push_back(areas[ownRows[i]]);
+        }
+        const std::vector<double> gatheredAreas = comm.allgather(sample);
+        checkSpacing = detail::medianSpacing(
+            Eigen::Map<const Eigen::VectorXd>(gatheredAreas.data(), static_cast<Eigen::Index>(gatheredAreas.size())));
+      }
+      const double d = options.overshootSpacings * checkSpacing;
+      std::vector<double> found;  // x, y, z, s·D of this rank's sites
+      if (d > 0.0 && std::isfinite(d)) {
+        detail::OvershootCandidates cand = detail::overshootCandidates(lp, ln, ownRows, d, offSide);
+        if (overshootAdded.size() != cand.added.size()) overshootAdded.assign(cand.added.size(), 0);
+        cand.added = overshootAdded;
+        for (const std::size_t r : detail::overshootSites(*evaluator, cand, dataIndex, d)) {
+          for (int a3 = 0; a3 < 3; ++a3) found.push_back(cand.q(static_cast<Eigen::Index>(r), a3));
+          found.push_back(cand.toward[r] * d);
+        }
+        overshootAdded = cand.added;
+      }
+      const std::vector<double> sites = comm.allgather(found);
+      if (sites.empty()) {
+        overshootSeconds += secondsSince(t0);
+      } else {
+        // What the check adds: its tests and every pass of level M but the last.
+        overshootSeconds += secondsSince(levelStart);
+        // Level M again with the sites: it leaves the field, its reports go.
+        const Eigen::Index base = overshootAt.rows(), extra = static_cast<Eigen::Index>(sites.size() / 4);
+        overshootAt.conservativeResize(base + extra, 3);
+        overshootTargets.conservativeResize(base + extra);
+        for (Eigen::Index j = 0; j < extra; ++j) {
+          for (int a3 = 0; a3 < 3; ++a3) overshootAt(base + j, a3) = sites[static_cast<std::size_t>(4 * j + a3)];
+          overshootTargets[base + j] = sites[static_cast<std::size_t>(4 * j + 3)];
+        }
+        ++overshootRound;
+        fitted.pop_back();
+        evaluator->dropLastLevel();
+        --k;
+        continue;
+      }
+    }
+    if (k == levels) {
+      lr.overshootSites = static_cast<std::size_t>(overshootAt.rows());
+      lr.overshootRounds = overshootRound;
+      lr.secondsOvershoot = overshootSeconds;
+    }
     rep.levelReports.push_back(lr);
     dls.front().bytes = bytes - bytesBefore;  // the rank's exchanges, on its first block
     // A gathered level is one solve for all of the rank's blocks: reported on the first.
