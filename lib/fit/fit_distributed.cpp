@@ -769,12 +769,14 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       double checkSpacing = parts == 1 ? spacing : 0.0;  // one block: the winding number's, as fit()
       if (!(checkSpacing > 0.0)) {
         // The median point area over all ranks' points (a stride sample of at most about 2^18 of them).
-        const Eigen::VectorXd areas = estimatePointAreas(lp, Points(-ln), WindingOptions().areaNeighbors, dataIndex);
         const auto total = static_cast<std::int64_t>(rep.inputPoints);
         const std::int64_t stride = std::max<std::int64_t>(1, total >> 18);
         std::vector<double> sample;
-        for (std::size_t i = 0; i < ownRows.size(); ++i) {
-          if ((ids[i] % stride) == 0) sample.push_back(areas[ownRows[i]]);
+        if (lp.rows() >= 2 && !ownRows.empty()) {  // a rank may own no point of a small cloud
+          const Eigen::VectorXd areas = estimatePointAreas(lp, Points(-ln), WindingOptions().areaNeighbors, dataIndex);
+          for (std::size_t i = 0; i < ownRows.size(); ++i) {
+            if ((ids[i] % stride) == 0) sample.push_back(areas[ownRows[i]]);
+          }
         }
         const std::vector<double> gatheredAreas = comm.allgather(sample);
         checkSpacing = detail::medianSpacing(
