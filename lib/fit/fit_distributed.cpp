@@ -367,6 +367,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
   std::vector<char> overshootAdded;   // per owned point and side: its candidate is a site already
   int overshootRound = 0;
   double overshootSeconds = 0.0;
+  double overshootSpacing = -1.0;     // D's spacing, once found (the same in every round)
   for (int k = 1; k <= levels; ++k) {
     const auto levelStart = Clock::now();
     if (k == levels) {
@@ -766,7 +767,8 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
         if (gathered ? (r >= firstOwnRow && r < firstOwnRow + u.rows()) : rowBlock[static_cast<std::size_t>(r)] >= 0) ownRows.push_back(r);
       }
       const NeighborIndex dataIndex(lp);
-      double checkSpacing = parts == 1 ? spacing : 0.0;  // one block: the winding number's, as fit()
+      if (overshootSpacing < 0.0) overshootSpacing = parts == 1 ? spacing : 0.0;  // one block: the winding number's, as fit()
+      double& checkSpacing = overshootSpacing;
       if (!(checkSpacing > 0.0)) {
         // The median point area over all ranks' points (a stride sample of at most about 2^18 of them).
         const auto total = static_cast<std::int64_t>(rep.inputPoints);
