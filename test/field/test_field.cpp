@@ -93,6 +93,17 @@ Points randomQueries(const ImplicitField& f, int n, unsigned seed) {
   return q;
 }
 
+/// `e` evaluates at q (with `derivatives`) exactly as a fresh evaluator of f's first `levels` levels.
+void checkSameAsFresh(const FieldEvaluator& e, const ImplicitField& f, const Device& d, Precision p, int levels,
+                      const Points& q, FieldDerivatives derivatives) {
+  const FieldEvaluator fresh(d, f, p, levels);
+  const FieldSamples a = e.evaluate(q, derivatives);
+  const FieldSamples b = fresh.evaluate(q, derivatives);
+  CHECK(a.values == b.values);
+  CHECK(a.gradients == b.gradients);
+  CHECK(a.hessians == b.hessians);
+}
+
 }  // namespace
 
 TEST_SUITE("field") {
@@ -370,12 +381,7 @@ TEST_SUITE("field") {
       for (int k = 1; k <= 4; ++k) {
         grown.appendLevel(f.levels()[static_cast<std::size_t>(k - 1)]);
         CHECK(grown.levelCount() == k);
-        const FieldEvaluator fresh(d, f, p, k);
-        const FieldSamples a = grown.evaluate(q, FieldDerivatives::Hessian);
-        const FieldSamples b = fresh.evaluate(q, FieldDerivatives::Hessian);
-        CHECK(a.values == b.values);
-        CHECK(a.gradients == b.gradients);
-        CHECK(a.hessians == b.hessians);
+        checkSameAsFresh(grown, f, d, p, k, q, FieldDerivatives::Hessian);
       }
     });
   }
@@ -404,11 +410,7 @@ TEST_SUITE("field") {
         CAPTURE(k);
         e.dropLastLevel();
         CHECK(e.levelCount() == k);
-        const FieldEvaluator fresh(d, f, p, k);
-        const FieldSamples a = e.evaluate(q, FieldDerivatives::Gradient);
-        const FieldSamples b = fresh.evaluate(q, FieldDerivatives::Gradient);
-        CHECK(a.values == b.values);
-        CHECK(a.gradients == b.gradients);
+        checkSameAsFresh(e, f, d, p, k, q, FieldDerivatives::Gradient);
       }
       CHECK_THROWS_AS(e.dropLastLevel(), InvalidArgument);
       for (int k = 0; k < 4; ++k) e.appendLevel(f.levels()[static_cast<std::size_t>(k)]);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "data.hpp"
@@ -54,6 +55,18 @@ std::size_t overshooting(const FitResult& r, const PointSet& cloud, double d) {
   return count;
 }
 
+/// wheel_29k (sparse samples on sharp ridges), duplicates merged, and the fit options of its tests.
+PointSet wheelCloud(const std::string& dataDir) {
+  PointSet cloud = readPointCloud(dataDir + "/clouds/wheel_29k.ply");
+  cloud.mergeDuplicates();
+  return cloud;
+}
+FitOptions wheelOptions() {
+  FitOptions o;
+  o.offsets = {0.025};
+  return o;
+}
+
 }  // namespace
 
 TEST_SUITE("fit") {
@@ -95,10 +108,8 @@ TEST_SUITE("fit") {
     DUPLEXFIT_SKIP("in the sanitizer build (the sphere case runs the check's code there)");
 #endif
     DUPLEXFIT_SHARED_DATA_DIR(dir);
-    PointSet cloud = readPointCloud(dir + "/clouds/wheel_29k.ply");
-    cloud.mergeDuplicates();
-    FitOptions o;
-    o.offsets = {0.025};
+    const PointSet cloud = wheelCloud(dir);
+    FitOptions o = wheelOptions();
     const double d = checkDistance(cloud, o);
     const FitResult on = fit(fitDevice(), cloud, o);
     o.overshootCheck = false;
@@ -122,10 +133,8 @@ TEST_SUITE("fit") {
     DUPLEXFIT_SKIP("in the sanitizer build (the sphere case runs the check's code there)");
 #endif
     DUPLEXFIT_SHARED_DATA_DIR(dir);
-    PointSet cloud = readPointCloud(dir + "/clouds/wheel_29k.ply");
-    cloud.mergeDuplicates();
-    FitOptions o;
-    o.offsets = {0.025};
+    const PointSet cloud = wheelCloud(dir);
+    const FitOptions o = wheelOptions();
     const double d = checkDistance(cloud, o);
     const FitResult serial = fit(fitDevice(), cloud, o);
     const std::unique_ptr<Communicator> comm = makeSerialCommunicator();
