@@ -207,8 +207,45 @@ void evalReference(const detail::EvaluatorImpl& e, const std::vector<T>& params,
   }
 }
 
-// Evaluates normalised queries (#Q×3), in their order, into a #Q×k row-major array of normalised results.
-std::vector<double> evaluateRawInOrder(const detail::EvaluatorImpl& e, const Points& u, int k) {
+/// Queries in a scattered order (consecutive ones far apart: a cloud in random order, as Poisson-disk and
+/// uniform samples are) read each level's centres from all over the field: on fandisk_550k's field (2.2M
+/// centres) its 1.8M zero-mesh vertices took 2.1 µs a point shuffled against 0.65 µs in the mesh's order. Such
+/// a chunk of queries (kChunk at most) is evaluated in Morton order and the results put back in place, so
+/// no copy of a whole batch is made. Judged on the chunk's first kProbe queries: sorted when the median step
+/// between consecutive ones exceeds kScattered times the median step of the same queries in Morton order (a
+/// mesh's, a grid's or a scan's order is about as coherent as that).
+constexpr Eigen::Index kSortMinQueries = Eigen::Index{1} << 15;
+constexpr Eigen::Index kProbe = 4096;
+constexpr double kScattered = 4.0;
+
+double medianStep(const Points& p, const std::vector<std::uint32_t>& order) {
+  std::vector<double> step;
+  step.reserve(static_cast<std::size_t>(p.rows()));
+  for (Eigen::Index r = 1; r < p.rows(); ++r) {
+    const auto a = order.empty() ? r - 1 : static_cast<Eigen::Index>(order[static_cast<std::size_t>(r - 1)]);
+    const auto b = order.empty() ? r : static_cast<Eigen::Index>(order[static_cast<std::size_t>(r)]);
+    step.push_back((p.row(b) - p.row(a)).squaredNorm());
+  }
+  if (step.empty()) return 0.0;
+  std::nth_element(step.begin(), step.begin() + static_cast<std::ptrdiff_t>(step.size() / 2), step.end());
+  return std::sqrt(step[step.size() / 2]);
+}
+
+/// The order to evaluate rows [begin, begin + m) of u in: empty for their own, else a Morton order of them
+/// (offsets from begin; see kScattered).
+std::vector<std::uint32_t> evaluationOrder(const Points& u, std::size_t begin, std::size_t m) {
+  if (m < static_cast<std::size_t>(kSortMinQueries)) return {};
+  const auto chunk = u.middleRows(static_cast<Eigen::Index>(begin), static_cast<Eigen::Index>(m));  // no copy
+  if (!chunk.allFinite()) return {};
+  const Points probe = chunk.topRows(kProbe);
+  const double own = medianStep(probe, {}), sorted = medianStep(probe, detail::processingOrder(probe, 2));
+  if (!(own > kScattered * sorted)) return {};
+  return detail::processingOrder(Points(chunk), 2);
+}
+
+// Evaluates normalised queries (#Q×3) into a #Q×k row-major array of normalised results, a chunk at a time,
+// each in Morton order where it comes scattered (evaluationOrder).
+std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u, int k) {
   const auto nq = static_cast<std::size_t>(u.rows());
   std::vector<double> result(nq * static_cast<std::size_t>(k));
   if (nq == 0) return result;
@@ -216,9 +253,13 @@ std::vector<double> evaluateRawInOrder(const detail::EvaluatorImpl& e, const Poi
     using T = decltype(zero);
     for (std::size_t begin = 0; begin < nq; begin += kChunk) {
       const std::size_t m = std::min(kChunk, nq - begin);
+      const std::vector<std::uint32_t> order = evaluationOrder(u, begin, m);
+      // Query i of the chunk is row begin + row(i) of u.
+      const auto row = [&order](std::size_t i) { return order.empty() ? i : static_cast<std::size_t>(order[i]); };
       std::vector<T> q(3 * m), out(static_cast<std::size_t>(k) * m);
       for (std::size_t i = 0; i < m; ++i) {
-        for (int c = 0; c < 3; ++c) q[3 * i + static_cast<std::size_t>(c)] = static_cast<T>(u(static_cast<Eigen::Index>(begin + i), c));
+        const auto r = static_cast<Eigen::Index>(begin + row(i));
+        for (int c = 0; c < 3; ++c) q[3 * i + static_cast<std::size_t>(c)] = static_cast<T>(u(r, c));
       }
       if (e.device.isReference()) {
         if constexpr (std::is_same_v<T, double>) {
@@ -261,60 +302,12 @@ std::vector<double> evaluateRawInOrder(const detail::EvaluatorImpl& e, const Poi
         impl.launch(kern, m, impl.params().workGroup, name);
         DUPLEXFIT_CL_CHECK(impl.queue().enqueueReadBuffer(ob, CL_TRUE, 0, out.size() * sizeof(T), out.data()));
       }
-      for (std::size_t i = 0; i < out.size(); ++i) {
-        result[static_cast<std::size_t>(k) * begin + i] = static_cast<double>(out[i]);
+      const auto width = static_cast<std::size_t>(k);
+      for (std::size_t i = 0; i < m; ++i) {
+        for (std::size_t c = 0; c < width; ++c) result[width * (begin + row(i)) + c] = static_cast<double>(out[width * i + c]);
       }
     }
   });
-  return result;
-}
-
-/// Queries in a scattered order (consecutive ones far apart: a cloud in random order, as Poisson-disk and
-/// uniform samples are) read each level's centres from all over the field: on fandisk_550k's field (2.2M
-/// centres) its 1.8M zero-mesh vertices took 2.1 µs a point shuffled against 0.65 µs in the mesh's order. Such
-/// a batch is evaluated in Morton order and the results put back in place. Judged on its first kProbe
-/// queries: sorted when the median step between consecutive ones exceeds kScattered times the median step of
-/// the same queries in Morton order (a mesh's, a grid's or a scan's order is about as coherent as that).
-constexpr Eigen::Index kSortMinQueries = Eigen::Index{1} << 15;
-constexpr Eigen::Index kProbe = 4096;
-constexpr double kScattered = 4.0;
-
-double medianStep(const Points& p, const std::vector<std::uint32_t>& order) {
-  std::vector<double> step;
-  step.reserve(static_cast<std::size_t>(p.rows()));
-  for (Eigen::Index r = 1; r < p.rows(); ++r) {
-    const auto a = order.empty() ? r - 1 : static_cast<Eigen::Index>(order[static_cast<std::size_t>(r - 1)]);
-    const auto b = order.empty() ? r : static_cast<Eigen::Index>(order[static_cast<std::size_t>(r)]);
-    step.push_back((p.row(b) - p.row(a)).squaredNorm());
-  }
-  if (step.empty()) return 0.0;
-  std::nth_element(step.begin(), step.begin() + static_cast<std::ptrdiff_t>(step.size() / 2), step.end());
-  return std::sqrt(step[step.size() / 2]);
-}
-
-/// The order to evaluate u in: empty for its own, else a Morton order (see kScattered).
-std::vector<std::uint32_t> evaluationOrder(const Points& u) {
-  if (u.rows() < kSortMinQueries || !u.allFinite()) return {};
-  const Points probe = u.topRows(kProbe);
-  const double own = medianStep(probe, {}), sorted = medianStep(probe, detail::processingOrder(probe, 2));
-  if (!(own > kScattered * sorted)) return {};
-  return detail::processingOrder(u, 2);
-}
-
-// Evaluates normalised queries (#Q×3) into a #Q×k row-major array of normalised results, in Morton order
-// where they come scattered (evaluationOrder).
-std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u, int k) {
-  const std::vector<std::uint32_t> order = evaluationOrder(u);
-  if (order.empty()) return evaluateRawInOrder(e, u, k);
-  Points sorted(u.rows(), 3);
-  for (Eigen::Index r = 0; r < u.rows(); ++r) sorted.row(r) = u.row(static_cast<Eigen::Index>(order[static_cast<std::size_t>(r)]));
-  const std::vector<double> s = evaluateRawInOrder(e, sorted, k);
-  std::vector<double> result(s.size());
-  const auto width = static_cast<std::size_t>(k);
-  for (std::size_t r = 0; r < order.size(); ++r) {
-    std::copy_n(s.begin() + static_cast<std::ptrdiff_t>(width * r), width,
-                result.begin() + static_cast<std::ptrdiff_t>(width * order[r]));
-  }
   return result;
 }
 

@@ -193,6 +193,27 @@ TEST_SUITE("field") {
       CHECK(differ == 0);
       CHECK(a.values.cwiseAbs().maxCoeff() > 0.0);
     });
+    // More than one chunk of 2^20 queries (each chunk judged and sorted on its own), on one device.
+    const int big = 104;
+    Points many(big * big * big, 3);
+    for (int k = 0, r = 0; k < big; ++k) {
+      for (int j = 0; j < big; ++j) {
+        for (int i = 0; i < big; ++i, ++r) {
+          many.row(r) = f.normalization().centre.transpose() + Eigen::RowVector3d(i, j, k) * (4.0 / big) - Eigen::RowVector3d(2, 2, 2);
+        }
+      }
+    }
+    std::vector<Eigen::Index> manyPerm(static_cast<std::size_t>(many.rows()));
+    for (std::size_t i = 0; i < manyPerm.size(); ++i) manyPerm[i] = static_cast<Eigen::Index>(i);
+    std::shuffle(manyPerm.begin(), manyPerm.end(), std::mt19937(12));
+    Points manyShuffled(many.rows(), 3);
+    for (Eigen::Index r = 0; r < many.rows(); ++r) manyShuffled.row(r) = many.row(manyPerm[static_cast<std::size_t>(r)]);
+    const Device& d = testing::openclOrReferenceDevice();
+    const Eigen::VectorXd inOrder = f.evaluate(d, many).values, scattered = f.evaluate(d, manyShuffled).values;
+    int differ = 0;
+    for (Eigen::Index r = 0; r < many.rows(); ++r) differ += scattered[r] != inOrder[manyPerm[static_cast<std::size_t>(r)]] ? 1 : 0;
+    CHECK(many.rows() > (Eigen::Index{1} << 20));
+    CHECK(differ == 0);
   }
 
   TEST_CASE("field: the SIMD kernel's width is the device's native float vector unless DUPLEXFIT_FIELD_KERNEL says") {
