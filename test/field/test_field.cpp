@@ -93,6 +93,29 @@ Points randomQueries(const ImplicitField& f, int n, unsigned seed) {
   return q;
 }
 
+/// n³ grid nodes over a cube of side 4 around f's centre (world units), in x-fastest order.
+Points gridAround(const ImplicitField& f, int n) {
+  Points grid(n * n * n, 3);
+  for (int k = 0, r = 0; k < n; ++k) {
+    for (int j = 0; j < n; ++j) {
+      for (int i = 0; i < n; ++i, ++r) {
+        grid.row(r) = f.normalization().centre.transpose() + Eigen::RowVector3d(i, j, k) * (4.0 / n) - Eigen::RowVector3d(2, 2, 2);
+      }
+    }
+  }
+  return grid;
+}
+
+/// The rows of p in a random order (seeded): row r of the result is row perm[r] of p.
+Points shuffledRows(const Points& p, unsigned seed, std::vector<Eigen::Index>& perm) {
+  perm.resize(static_cast<std::size_t>(p.rows()));
+  for (std::size_t i = 0; i < perm.size(); ++i) perm[i] = static_cast<Eigen::Index>(i);
+  std::shuffle(perm.begin(), perm.end(), std::mt19937(seed));
+  Points out(p.rows(), 3);
+  for (Eigen::Index r = 0; r < p.rows(); ++r) out.row(r) = p.row(perm[static_cast<std::size_t>(r)]);
+  return out;
+}
+
 /// `e` evaluates at q (with `derivatives`) exactly as a fresh evaluator of f's first `levels` levels.
 void checkSameAsFresh(const FieldEvaluator& e, const ImplicitField& f, const Device& d, Precision p, int levels,
                       const Points& q, FieldDerivatives derivatives) {
@@ -167,20 +190,9 @@ TEST_SUITE("field") {
     // grid in x-fastest order, and the same queries shuffled: every point's value and gradient the same, bit
     // for bit.
     const ImplicitField f = randomField(5);
-    const int n = 34;
-    Points grid(n * n * n, 3);
-    for (int k = 0, r = 0; k < n; ++k) {
-      for (int j = 0; j < n; ++j) {
-        for (int i = 0; i < n; ++i, ++r) {
-          grid.row(r) = f.normalization().centre.transpose() + Eigen::RowVector3d(i, j, k) * (4.0 / n) - Eigen::RowVector3d(2, 2, 2);
-        }
-      }
-    }
-    std::vector<Eigen::Index> perm(static_cast<std::size_t>(grid.rows()));
-    for (std::size_t i = 0; i < perm.size(); ++i) perm[i] = static_cast<Eigen::Index>(i);
-    std::shuffle(perm.begin(), perm.end(), std::mt19937(11));
-    Points shuffled(grid.rows(), 3);
-    for (Eigen::Index r = 0; r < grid.rows(); ++r) shuffled.row(r) = grid.row(perm[static_cast<std::size_t>(r)]);
+    const Points grid = gridAround(f, 34);
+    std::vector<Eigen::Index> perm;
+    const Points shuffled = shuffledRows(grid, 11, perm);
     forEachDeviceAndPrecision([&](const Device& d, Precision p) {
       const FieldSamples a = f.evaluate(d, grid, FieldDerivatives::Gradient, p);
       const FieldSamples b = f.evaluate(d, shuffled, FieldDerivatives::Gradient, p);
@@ -194,20 +206,9 @@ TEST_SUITE("field") {
       CHECK(a.values.cwiseAbs().maxCoeff() > 0.0);
     });
     // More than one chunk of 2^20 queries (each chunk judged and sorted on its own), on one device.
-    const int big = 104;
-    Points many(big * big * big, 3);
-    for (int k = 0, r = 0; k < big; ++k) {
-      for (int j = 0; j < big; ++j) {
-        for (int i = 0; i < big; ++i, ++r) {
-          many.row(r) = f.normalization().centre.transpose() + Eigen::RowVector3d(i, j, k) * (4.0 / big) - Eigen::RowVector3d(2, 2, 2);
-        }
-      }
-    }
-    std::vector<Eigen::Index> manyPerm(static_cast<std::size_t>(many.rows()));
-    for (std::size_t i = 0; i < manyPerm.size(); ++i) manyPerm[i] = static_cast<Eigen::Index>(i);
-    std::shuffle(manyPerm.begin(), manyPerm.end(), std::mt19937(12));
-    Points manyShuffled(many.rows(), 3);
-    for (Eigen::Index r = 0; r < many.rows(); ++r) manyShuffled.row(r) = many.row(manyPerm[static_cast<std::size_t>(r)]);
+    const Points many = gridAround(f, 104);
+    std::vector<Eigen::Index> manyPerm;
+    const Points manyShuffled = shuffledRows(many, 12, manyPerm);
     const Device& d = testing::openclOrReferenceDevice();
     const Eigen::VectorXd inOrder = f.evaluate(d, many).values, scattered = f.evaluate(d, manyShuffled).values;
     int differ = 0;
