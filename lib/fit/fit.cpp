@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <numeric>
 #include <sstream>
 
 #include "duplexfit/error.hpp"
@@ -22,7 +23,6 @@
 #include "fit/hierarchy.hpp"
 #include "fit/partition.hpp"
 #include "spatial/disk_distance.hpp"
-#include "spatial/morton.hpp"
 
 namespace duplexfit {
 
@@ -351,15 +351,8 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
   {
     const Points normalised = (norm.scale * (points.positions().rowwise() - norm.centre.transpose())).eval();
     const std::vector<Eigen::Index> order = detail::mortonOrder(normalised, detail::hierarchyBox(normalised));
-    const Points& normals = points.normals();
-    const double toward = options.normalsInward ? 1.0 : -1.0;
-    u.resize(normalised.rows(), 3);
-    nu.resize(normalised.rows(), 3);
-    for (Eigen::Index r = 0; r < normalised.rows(); ++r) {
-      const Eigen::Index i = order[static_cast<std::size_t>(r)];
-      u.row(r) = normalised.row(i);
-      nu.row(r) = toward * normals.row(i);
-    }
+    u = normalised(order, Eigen::all);
+    nu = (options.normalsInward ? 1.0 : -1.0) * points.normals()(order, Eigen::all);
   }
 
   rep.smoothing = options.smoothing;
@@ -505,7 +498,7 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     // The candidates in the Morton order of their points (u's order, §4.7): in the cloud's order
     // (fandisk_550k's is random) the evaluation took three times as long.
     std::vector<Eigen::Index> rows(static_cast<std::size_t>(u.rows()));
-    for (std::size_t i = 0; i < rows.size(); ++i) rows[i] = static_cast<Eigen::Index>(i);
+    std::iota(rows.begin(), rows.end(), Eigen::Index{0});
     detail::OvershootCandidates cand = detail::overshootCandidates(u, nu, rows, d, offSide);
     if (!inputIndex) inputIndex = std::make_unique<NeighborIndex>(u);
     double assembly = 0.0, solve = 0.0;

@@ -151,16 +151,12 @@ DistributedPoints partitionPoints(Communicator& comm, const PointSet& myRows, st
   {
     const Points un = normalise(set.positions(), frame.norm);
     const std::vector<Eigen::Index> order = detail::mortonOrder(un, frame.box);
-    Points p(static_cast<Eigen::Index>(set.size()), 3), nrm(static_cast<Eigen::Index>(set.size()), 3);
-    for (Eigen::Index r = 0; r < un.rows(); ++r) {
-      const Eigen::Index i = order[static_cast<std::size_t>(r)];
+    for (Eigen::Index i = 0; i < un.rows(); ++i) {
       const int b = detail::ownerOfKey(out.blockSplitters, detail::mortonKey63(un.row(i).transpose(), frame.box)) - out.firstBlock;
       if (b < 0 || b >= localBlocks) throw InvalidArgument("distributed fit: a point outside its rank's blocks (internal error)");
       ++count[static_cast<std::size_t>(b) + 1];
-      p.row(r) = set.positions().row(i);
-      nrm.row(r) = set.normals().row(i);
     }
-    set = PointSet::fromNormalized(std::move(p), std::move(nrm));
+    set = PointSet::fromNormalized(set.positions()(order, Eigen::all), set.normals()(order, Eigen::all));
   }
   for (int b = 0; b < localBlocks; ++b) count[static_cast<std::size_t>(b) + 1] += count[static_cast<std::size_t>(b)];
   out.blockRows = count;
@@ -364,7 +360,8 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
   // it owns and, in local mode, those within its halo). With one rank and one block this is fit()'s check.
   Points overshootAt;                 // every rank's sites so far, in rank order (normalised)
   Eigen::VectorXd overshootTargets;   // s·D
-  std::vector<char> overshootAdded;   // per owned point and side: its candidate is a site already
+  // This rank's candidates, made once (level M's data are the same in every pass) and marked as they join.
+  std::unique_ptr<detail::OvershootCandidates> overshootCandidates;
   int overshootRound = 0;
   double overshootSeconds = 0.0;
   double overshootSpacing = -1.0;     // D's spacing, once found (the same in every round)
@@ -509,6 +506,8 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       // part it neighbours centres whose sources are across the part (the data radius, (g+1)σ_k + 2 max|δ|,
       // holds their sources). Exact mode: the owned centres only (the rank's rows of the global system).
       // Anchors: one block, or gathered levels.
+      // The unit's owned centres' index (local mode), also asked for the overshoot sites near them below.
+      std::unique_ptr<NeighborIndex> ownedIndex;
       if (!gathered) {
         std::vector<char> inSystem(static_cast<std::size_t>(c.centres.rows()), 0);
         std::vector<Eigen::Index> ownedRows;
@@ -526,8 +525,8 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
           for (Eigen::Index r = 0; r < c.centres.rows(); ++r) {
             if (inSystem[static_cast<std::size_t>(r)] == 0) others.push_back(r);
           }
-          const NeighborIndex ownedIndex(rowsOf(c.centres, ownedRows));
-          const NeighborLists nearest = ownedIndex.nearestWithin(rowsOf(c.centres, others), dist.halo * sigma);
+          ownedIndex = std::make_unique<NeighborIndex>(rowsOf(c.centres, ownedRows));
+          const NeighborLists nearest = ownedIndex->nearestWithin(rowsOf(c.centres, others), dist.halo * sigma);
           for (std::size_t o = 0; o < others.size(); ++o) {
             if (nearest.offsets[o + 1] == nearest.offsets[o]) continue;
             const auto i = static_cast<std::size_t>(others[o]);
@@ -569,10 +568,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
         if (gathered) {
           for (Eigen::Index i = 0; i < overshootAt.rows(); ++i) take.push_back(i);
         } else {
-          std::vector<Eigen::Index> owned, others;
-          for (Eigen::Index r = 0; r < systemCentres; ++r) {
-            if (ownedPoint[static_cast<std::size_t>(c.sources[static_cast<std::size_t>(r)])] != 0) owned.push_back(r);
-          }
+          std::vector<Eigen::Index> others;
           for (Eigen::Index i = 0; i < overshootAt.rows(); ++i) {
             if (detail::ownerOfKey(blockSplitters, detail::mortonKey63(overshootAt.row(i).transpose(), box)) == block) {
               take.push_back(i);
@@ -580,8 +576,8 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
               others.push_back(i);
             }
           }
-          if (!others.empty() && !owned.empty()) {
-            const NeighborLists near = NeighborIndex(rowsOf(c.centres, owned)).nearestWithin(rowsOf(overshootAt, others), dist.halo * sigma);
+          if (!others.empty() && ownedIndex) {  // local mode with owned centres: the index of the system's test
+            const NeighborLists near = ownedIndex->nearestWithin(rowsOf(overshootAt, others), dist.halo * sigma);
             for (std::size_t o = 0; o < others.size(); ++o) {
               if (near.offsets[o + 1] > near.offsets[o]) take.push_back(others[o]);
             }
@@ -787,14 +783,14 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       const double d = options.overshootSpacings * checkSpacing;
       std::vector<double> found;  // x, y, z, s·D of this rank's sites
       if (d > 0.0 && std::isfinite(d)) {
-        detail::OvershootCandidates cand = detail::overshootCandidates(lp, ln, ownRows, d, offSide);
-        if (overshootAdded.size() != cand.added.size()) overshootAdded.assign(cand.added.size(), 0);
-        cand.added = overshootAdded;
+        if (!overshootCandidates) {
+          overshootCandidates = std::make_unique<detail::OvershootCandidates>(detail::overshootCandidates(lp, ln, ownRows, d, offSide));
+        }
+        detail::OvershootCandidates& cand = *overshootCandidates;
         for (const std::size_t r : detail::overshootSites(*evaluator, cand, dataIndex, d)) {
           for (int a3 = 0; a3 < 3; ++a3) found.push_back(cand.q(static_cast<Eigen::Index>(r), a3));
           found.push_back(cand.toward[r] * d);
         }
-        overshootAdded = cand.added;
       }
       const std::vector<double> sites = comm.allgather(found);
       if (sites.empty()) {
