@@ -61,7 +61,14 @@ DPX_EVAL_KERNEL(eval_field_hessian, dpx_field_point, 10)
 typedef float16 realv;
 typedef int16 maskv;
 #define DPX_VLOAD vload16
+#define DPX_VSTORE vstore16
 #define DPX_LANE_INDEX (maskv)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15)
+
+inline int dpx_isum(const maskv v16) {
+  const int8 v = v16.lo + v16.hi;
+  const int4 h = v.lo + v.hi;
+  return (h.s0 + h.s2) + (h.s1 + h.s3);
+}
 
 inline real dpx_hsum(const realv v16) {
   const float8 v = v16.lo + v16.hi;
@@ -72,7 +79,13 @@ inline real dpx_hsum(const realv v16) {
 typedef float8 realv;
 typedef int8 maskv;
 #define DPX_VLOAD vload8
+#define DPX_VSTORE vstore8
 #define DPX_LANE_INDEX (maskv)(0, 1, 2, 3, 4, 5, 6, 7)
+
+inline int dpx_isum(const maskv v) {
+  const int4 h = v.lo + v.hi;
+  return (h.s0 + h.s2) + (h.s1 + h.s3);
+}
 
 inline real dpx_hsum(const realv v) {
   const float4 h = v.lo + v.hi;
@@ -101,6 +114,16 @@ typedef long8 dmaskv;
 #define DPX_DVLOAD vload8
 #define DPX_DWIDTH 8
 #define DPX_DLANE_INDEX (dmaskv)(0, 1, 2, 3, 4, 5, 6, 7)
+typedef double16 dtilev; /* a tile's lanes in double (dpx_field_tile) */
+typedef long16 dtilem;
+#define DPX_DTILE convert_double16
+#define DPX_DTILE_MASK convert_long16
+#define DPX_DTILE_STORE vstore16
+#define DPX_DVSTORE vstore8
+inline int dpx_disum(const dmaskv v) {
+  const long4 h = v.lo + v.hi;
+  return (int)((h.s0 + h.s2) + (h.s1 + h.s3));
+}
 inline double dpx_dhsum(const dblv v) {
   const double4 h = v.lo + v.hi;
   return (h.s0 + h.s2) + (h.s1 + h.s3);
@@ -111,6 +134,13 @@ typedef long4 dmaskv;
 #define DPX_DVLOAD vload4
 #define DPX_DWIDTH 4
 #define DPX_DLANE_INDEX (dmaskv)(0, 1, 2, 3)
+typedef double8 dtilev;
+typedef long8 dtilem;
+#define DPX_DTILE convert_double8
+#define DPX_DTILE_MASK convert_long8
+#define DPX_DTILE_STORE vstore8
+#define DPX_DVSTORE vstore4
+inline int dpx_disum(const dmaskv v) { return (int)((v.s0 + v.s2) + (v.s1 + v.s3)); }
 inline double dpx_dhsum(const dblv v) { return (v.s0 + v.s2) + (v.s1 + v.s3); }
 #endif
 #else
@@ -182,21 +212,23 @@ typedef real dreal; /* unused: no level is given a double block */
     }                                                                                                     \
   } while (0)
 
-inline void dpx_field_point_v8(const real x, const real y, const real z, const uint nlevels,
-                               __global const real* params, __global const uint* dims,
-                               __global const uint* cell_start, __global const real* centres, const real f0,
-                               __global const uint* dlevel, __global const dreal* dcentres, const int k,
-                               real* acc) {
+/* Levels [l0, l1) of the sum at (x, y, z), added to sum[0..k) (the float levels) and, with
+ * DPX_COARSE_DOUBLE, dsum[0..k) (the double levels). */
+__attribute__((always_inline)) inline void dpx_field_levels_v8(const real x, const real y, const real z,
+                                                               const uint l0, const uint l1,
+                                                               __global const real* params,
+                                                               __global const uint* dims,
+                                                               __global const uint* cell_start,
+                                                               __global const real* centres,
+                                                               __global const uint* dlevel,
+                                                               __global const dreal* dcentres, const int k,
+                                                               real* sum, dreal* dsum) {
 #ifdef DPX_COARSE_DOUBLE
-  double dsum[10] = {f0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
-  real sum[10] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
   const dmaskv dlane = DPX_DLANE_INDEX;
   const double xd = x, yd = y, zd = z;
-#else
-  real sum[10] = {f0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
 #endif
   const maskv lane = DPX_LANE_INDEX;
-  for (uint l = 0; l < nlevels; ++l) {
+  for (uint l = l0; l < l1; ++l) {
     __global const real* p = params + 7 * l;
     const real oy = p[1], oz = p[2], inv_cell = p[3], sigma = p[4], inv_sigma = p[5];
     const int nx = (int)dims[5 * l], ny = (int)dims[5 * l + 1], nz = (int)dims[5 * l + 2];
@@ -224,6 +256,21 @@ inline void dpx_field_point_v8(const real x, const real y, const real z, const u
     DPX_LEVEL_SUM(real, realv, maskv, int, DPX_VLOAD, FIELD_WIDTH, lane, dpx_hsum, x, y, z, px, py, pz, pw, sigma,
                   inv_sigma, sum);
   }
+}
+
+inline void dpx_field_point_v8(const real x, const real y, const real z, const uint nlevels,
+                               __global const real* params, __global const uint* dims,
+                               __global const uint* cell_start, __global const real* centres, const real f0,
+                               __global const uint* dlevel, __global const dreal* dcentres, const int k,
+                               real* acc) {
+#ifdef DPX_COARSE_DOUBLE
+  double dsum[10] = {f0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+  real sum[10] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+#else
+  real sum[10] = {f0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+  dreal dsum[10] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0}; /* unused */
+#endif
+  dpx_field_levels_v8(x, y, z, 0, nlevels, params, dims, cell_start, centres, dlevel, dcentres, k, sum, dsum);
 #ifdef DPX_COARSE_DOUBLE
   for (int c = 0; c < k; ++c) acc[c] = (real)(dsum[c] + (double)sum[c]);
 #else
@@ -248,4 +295,320 @@ inline void dpx_field_point_v8(const real x, const real y, const real z, const u
 DPX_EVAL_KERNEL_V8(eval_field_value_v8, 1)
 DPX_EVAL_KERNEL_V8(eval_field_gradient_v8, 4)
 DPX_EVAL_KERNEL_V8(eval_field_hessian_v8, 10)
+
+/* ---- Tiles: FIELD_WIDTH queries a work-item, one a lane, for the coarse levels ----
+ * A query's coarse levels cost as much as its fine ones (each level has about as many centres within
+ * reach of a surface point: 24-100 on fandisk_550k's field), but a coarse support is much wider than the
+ * distance between neighbouring queries of a mesh, a grid block or a Morton-ordered batch. So the levels
+ * [0, ntile) are summed for a tile of FIELD_WIDTH consecutive queries at once: the cells within sigma of the
+ * tile's box are read once, FIELD_WIDTH centres at a time; a centre is kept when it lies within sigma of
+ * the box (a vector test, the kept ones listed from a bit mask), and its terms are then computed for all
+ * the tile's queries in one vector step, each lane adding them in the centres' order (terms outside a
+ * lane's support are +0, which add nothing). Where the tile's box is wider than DPX_TILE_SPAN sigma in some
+ * axis (scattered queries), the level is summed a query at a time, W centres a step, each term within the
+ * support added on its own in the same order (DPX_SEQ_SUM): the same bits. So a query's value does not
+ * depend on the other queries of its batch or on their order. The levels [ntile, nlevels) are summed per
+ * query as in the _v8 kernels. Value (K = 1) and gradient (K = 4). */
+#ifndef DPX_TILE_SPAN
+#define DPX_TILE_SPAN 1.0f
+#endif
+
+#define DPX_TILE_STEP(ST, VT, MT, QX, QY, QZ, CX, CY, CZ, WC, S2, ISG, HS, F, GX, GY, GZ)                     \
+  do {                                                                                                      \
+    const VT ux = (QX) - (CX), uy = (QY) - (CY), uz = (QZ) - (CZ);                                          \
+    const VT d2 = ux * ux + uy * uy + uz * uz;                                                              \
+    const MT inside = d2 < (VT)(S2);                                                                        \
+    const VT w = select((VT)0, (VT)(WC), inside);                                                           \
+    const VT r = sqrt(d2) * (ISG);                                                                          \
+    const VT t = fmax((VT)1 - r, (VT)0);                                                                    \
+    const VT t2 = t * t;                                                                                    \
+    const VT ft = w * t2 * t2 * ((VT)4 * r + (VT)1);                                                        \
+    (F) += ft;                                                                                              \
+    if (k >= 4) {                                                                                           \
+      const VT g = -w * (HS) * t2 * t;                                                                      \
+      const VT gxt = g * ux, gyt = g * uy, gzt = g * uz;                                                    \
+      (GX) += gxt;                                                                                          \
+      (GY) += gyt;                                                                                          \
+      (GZ) += gzt;                                                                                          \
+    }                                                                                                       \
+  } while (0)
+
+/* One query's level, W centres a step with the terms of DPX_TILE_STEP, each term within the support added to
+ * S[0..k) on its own, in the centres' order: the sum that a tile's lane makes of the same level (the terms
+ * outside its support it adds are +0), so a query gets the same bits whether its tile is wide or not. Rows
+ * [ty0, ty1] x [tz0, tz1], cells [tx0, tx1]. */
+#define DPX_SEQ_SUM(ST, VT, MT, IT, VLOAD, VSTORE, W, LANE, ISUM, XQ, YQ, ZQ, PX, PY, PZ, PW, SIGMA, INV_SIGMA,  \
+                    S)                                                                                      \
+  do {                                                                                                      \
+    const ST sg_ = (SIGMA), isg_ = (INV_SIGMA);                                                             \
+    const ST s2_ = sg_ * sg_;                                                                               \
+    const ST hs_ = (ST)20 * isg_ * isg_;                                                                    \
+    for (int iz = tz0; iz <= tz1; ++iz) {                                                                   \
+      for (int iy = ty0; iy <= ty1; ++iy) {                                                                 \
+        const uint row = cs_off + (uint)((iz * ny + iy) * nx);                                              \
+        const uint b = cell_start[row + (uint)tx0];                                                         \
+        const uint e = cell_start[row + (uint)tx1 + 1];                                                     \
+        for (uint j0 = b; j0 < e; j0 += (W)) {                                                              \
+          const MT valid = (LANE) < (MT)((IT)(e - j0));                                                     \
+          const VT ux = select((VT)sg_, (VT)(XQ) - VLOAD(0, (PX) + j0), valid);                             \
+          const VT uy = select((VT)sg_, (VT)(YQ) - VLOAD(0, (PY) + j0), valid);                             \
+          const VT uz = select((VT)sg_, (VT)(ZQ) - VLOAD(0, (PZ) + j0), valid);                             \
+          const VT d2 = ux * ux + uy * uy + uz * uz;                                                        \
+          const MT inside = d2 < (VT)s2_;                                                                   \
+          int bits_ = ISUM(select((MT)0, (MT)1 << (LANE), inside));                                         \
+          if (bits_ == 0) continue;                                                                         \
+          const VT w = select((VT)0, VLOAD(0, (PW) + j0), inside);                                          \
+          const VT r = sqrt(d2) * isg_;                                                                     \
+          const VT t = fmax((VT)1 - r, (VT)0);                                                              \
+          const VT t2 = t * t;                                                                              \
+          const VT ft = w * t2 * t2 * ((VT)4 * r + (VT)1);                                                  \
+          ST a_[4][W];                                                                                      \
+          VSTORE(ft, 0, a_[0]);                                                                             \
+          if (k >= 4) {                                                                                     \
+            const VT g = -w * hs_ * t2 * t;                                                                 \
+            const VT gxt = g * ux, gyt = g * uy, gzt = g * uz;                                              \
+            VSTORE(gxt, 0, a_[1]);                                                                          \
+            VSTORE(gyt, 0, a_[2]);                                                                          \
+            VSTORE(gzt, 0, a_[3]);                                                                          \
+          }                                                                                                 \
+          while (bits_ != 0) {                                                                              \
+            const int i_ = 31 - clz(bits_ & -bits_);                                                        \
+            bits_ &= bits_ - 1;                                                                             \
+            (S)[0] += a_[0][i_];                                                                            \
+            if (k >= 4) {                                                                                   \
+              (S)[1] += a_[1][i_];                                                                          \
+              (S)[2] += a_[2][i_];                                                                          \
+              (S)[3] += a_[3][i_];                                                                          \
+            }                                                                                               \
+          }                                                                                                 \
+        }                                                                                                   \
+      }                                                                                                     \
+    }                                                                                                       \
+  } while (0)
+
+/* A float level over the tile: the cells' centres FIELD_WIDTH at a time, kept by a vector test
+ * of their distance to the box [LO, HI] and listed without branches, then one step each. */
+#define DPX_TILE_SUM(LOX, LOY, LOZ, HIX, HIY, HIZ, PX, PY, PZ, PW, SIGMA, INV_SIGMA, F, GX, GY, GZ)           \
+  do {                                                                                                      \
+    const real sg_ = (SIGMA), isg_ = (INV_SIGMA);                                                           \
+    const real s2_ = sg_ * sg_;                                                                             \
+    const realv keep_ = (realv)(s2_ * (real)1.001);                                                         \
+    const real hs_ = (real)20 * isg_ * isg_;                                                                \
+    realv f_ = 0, gx_ = 0, gy_ = 0, gz_ = 0;                                                                \
+    for (int iz = tz0; iz <= tz1; ++iz) {                                                                   \
+      for (int iy = ty0; iy <= ty1; ++iy) {                                                                 \
+        const uint row = cs_off + (uint)((iz * ny + iy) * nx);                                              \
+        const uint b = cell_start[row + (uint)tx0];                                                         \
+        const uint e = cell_start[row + (uint)tx1 + 1];                                                     \
+        for (uint j0 = b; j0 < e; j0 += FIELD_WIDTH) {                                                      \
+          const maskv valid_ = lane < (maskv)((int)(e - j0));                                               \
+          const realv cx_ = DPX_VLOAD(0, (PX) + j0), cy_ = DPX_VLOAD(0, (PY) + j0);                         \
+          const realv cz_ = DPX_VLOAD(0, (PZ) + j0);                                                        \
+          const realv ex_ = fmax(fmax((realv)(LOX) - cx_, cx_ - (realv)(HIX)), (realv)0);                   \
+          const realv ey_ = fmax(fmax((realv)(LOY) - cy_, cy_ - (realv)(HIY)), (realv)0);                   \
+          const realv ez_ = fmax(fmax((realv)(LOZ) - cz_, cz_ - (realv)(HIZ)), (realv)0);                   \
+          const maskv pass_ = (ex_ * ex_ + ey_ * ey_ + ez_ * ez_ < keep_) & valid_;                         \
+          int bits_ = dpx_isum(select((maskv)0, (maskv)1 << lane, pass_));                                 \
+          while (bits_ != 0) {                                                                              \
+            const uint j = j0 + (uint)(31 - clz(bits_ & -bits_));                                           \
+            bits_ &= bits_ - 1;                                                                             \
+            DPX_TILE_STEP(real, realv, maskv, qx, qy, qz, (PX)[j], (PY)[j], (PZ)[j], (PW)[j], s2_, isg_,     \
+                          hs_, f_, gx_, gy_, gz_);                                                          \
+          }                                                                                                 \
+        }                                                                                                   \
+      }                                                                                                     \
+    }                                                                                                       \
+    (F) += f_;                                                                                              \
+    if (k >= 4) {                                                                                           \
+      (GX) += gx_;                                                                                          \
+      (GY) += gy_;                                                                                          \
+      (GZ) += gz_;                                                                                          \
+    }                                                                                                       \
+  } while (0)
+
+/* A double level (few centres, most of them within reach): every centre of the cells, one step each. */
+#define DPX_TILE_SUM_D(PX, PY, PZ, PW, SIGMA, INV_SIGMA, F, GX, GY, GZ)                                      \
+  do {                                                                                                      \
+    const double sg_ = (SIGMA), isg_ = (INV_SIGMA);                                                         \
+    const double s2_ = sg_ * sg_;                                                                           \
+    const double hs_ = 20.0 * isg_ * isg_;                                                                  \
+    dtilev f_ = 0, gx_ = 0, gy_ = 0, gz_ = 0;                                                               \
+    for (int iz = tz0; iz <= tz1; ++iz) {                                                                   \
+      for (int iy = ty0; iy <= ty1; ++iy) {                                                                 \
+        const uint row = cs_off + (uint)((iz * ny + iy) * nx);                                              \
+        const uint b = cell_start[row + (uint)tx0];                                                         \
+        const uint e = cell_start[row + (uint)tx1 + 1];                                                     \
+        for (uint j = b; j < e; ++j) {                                                                      \
+          DPX_TILE_STEP(double, dtilev, dtilem, dqx, dqy, dqz, (PX)[j], (PY)[j], (PZ)[j], (PW)[j], s2_,     \
+                        isg_, hs_, f_, gx_, gy_, gz_);                                                      \
+        }                                                                                                   \
+      }                                                                                                     \
+    }                                                                                                       \
+    (F) += f_;                                                                                              \
+    if (k >= 4) {                                                                                           \
+      (GX) += gx_;                                                                                          \
+      (GY) += gy_;                                                                                          \
+      (GZ) += gz_;                                                                                          \
+    }                                                                                                       \
+  } while (0)
+
+/* The cells [*c0, *c1] of an axis with n cells (origin o, 1/cell inv) that [lo - reach, hi + reach] meets
+ * (*c0 > *c1 when none), clamped before the conversion so that no value overflows an int. */
+inline void dpx_cell_range(const real lo, const real hi, const real reach, const real o, const real inv,
+                           const int n, int* c0, int* c1) {
+  const real f0 = (lo - reach - o) * inv, f1 = (hi + reach - o) * inv;
+  *c0 = (int)floor(fmin(fmax(f0, (real)0), (real)n));
+  *c1 = (int)floor(fmin(fmax(f1, (real)-1), (real)(n - 1)));
+}
+
+/* Always inlined, as dpx_field_levels_v8, so that k is a constant in each kernel. */
+__attribute__((always_inline)) inline void dpx_field_tile(const uint nq, __global const real* queries,
+                                                          const uint nlevels, __global const real* params,
+                                                          __global const uint* dims,
+                                                          __global const uint* cell_start,
+                                                          __global const real* centres, const real f0,
+                                                          __global const uint* dlevel,
+                                                          __global const dreal* dcentres, const uint ntile,
+                                                          const int k, __global real* out) {
+  const uint first = (uint)get_global_id(0) * FIELD_WIDTH;
+  if (first >= nq) return;
+  const int count = (int)min((uint)FIELD_WIDTH, nq - first);
+  real ax[FIELD_WIDTH], ay[FIELD_WIDTH], az[FIELD_WIDTH];
+  for (int i = 0; i < FIELD_WIDTH; ++i) {
+    const uint q = first + (uint)min(i, count - 1); /* lanes past the batch repeat its last query */
+    ax[i] = queries[3 * q];
+    ay[i] = queries[3 * q + 1];
+    az[i] = queries[3 * q + 2];
+  }
+  real lox = ax[0], loy = ay[0], loz = az[0], hix = ax[0], hiy = ay[0], hiz = az[0];
+  for (int i = 1; i < count; ++i) {
+    lox = fmin(lox, ax[i]), loy = fmin(loy, ay[i]), loz = fmin(loz, az[i]);
+    hix = fmax(hix, ax[i]), hiy = fmax(hiy, ay[i]), hiz = fmax(hiz, az[i]);
+  }
+  const realv qx = DPX_VLOAD(0, ax), qy = DPX_VLOAD(0, ay), qz = DPX_VLOAD(0, az);
+  const maskv lane = DPX_LANE_INDEX;
+  const bool finite = isfinite(lox + loy + loz + hix + hiy + hiz);
+  const uint nt = finite ? min(ntile, nlevels) : 0u; /* a non-finite query: every level per query */
+#ifdef DPX_COARSE_DOUBLE
+  const dtilev dqx = DPX_DTILE(qx), dqy = DPX_DTILE(qy), dqz = DPX_DTILE(qz);
+  dtilev DF = (dtilev)f0, DGX = 0, DGY = 0, DGZ = 0;
+  realv F = 0;
+#else
+  realv F = (realv)f0;
+#endif
+  realv GX = 0, GY = 0, GZ = 0;
+  for (uint l = 0; l < nt; ++l) {
+    __global const real* p = params + 7 * l;
+    const real ox = p[0], oy = p[1], oz = p[2], inv_cell = p[3], sigma = p[4], inv_sigma = p[5], inv_cx = p[6];
+    const int nx = (int)dims[5 * l], ny = (int)dims[5 * l + 1], nz = (int)dims[5 * l + 2];
+    const uint cs_off = dims[5 * l + 3], c_off = dims[5 * l + 4];
+    const uint n = cell_start[cs_off + (uint)(nx * ny * nz)];
+    const real reach = sigma * (real)1.0009765625;
+    const bool wide = hix - lox > DPX_TILE_SPAN * sigma || hiy - loy > DPX_TILE_SPAN * sigma ||
+                      hiz - loz > DPX_TILE_SPAN * sigma;
+    int ty0, ty1, tz0, tz1, tx0, tx1;
+    if (!wide) {
+      /* Rows within sigma of the box; a cell is at least sigma deep in y and z, so these hold every row
+       * dpx_field_levels_v8 visits with a centre in a query's support. */
+      dpx_cell_range(loy, hiy, reach, oy, inv_cell, ny, &ty0, &ty1);
+      dpx_cell_range(loz, hiz, reach, oz, inv_cell, nz, &tz0, &tz1);
+      dpx_cell_range(lox, hix, reach, ox, inv_cx, nx, &tx0, &tx1);
+      if (ty0 > ty1 || tz0 > tz1 || tx0 > tx1) continue;
+#ifdef DPX_COARSE_DOUBLE
+      if (dlevel[l] != 0xffffffffu) {
+        __global const double* dc = dcentres + dlevel[l];
+        __global const double* cxs = dc + 2;
+        DPX_TILE_SUM_D(cxs, cxs + n, cxs + 2 * n, cxs + 3 * n, dc[0], dc[1], DF, DGX, DGY, DGZ);
+        continue;
+      }
+#endif
+      __global const real* px = centres + 4 * (ulong)c_off;
+      DPX_TILE_SUM(lox, loy, loz, hix, hiy, hiz, px, px + n, px + 2 * n, px + 3 * n, sigma, inv_sigma, F,
+                   GX, GY, GZ);
+      continue;
+    }
+    /* A tile wider than its level's reach (scattered queries): each query on its own, the same sum. */
+    for (int i = 0; i < count; ++i) {
+      dpx_cell_range(ay[i], ay[i], reach, oy, inv_cell, ny, &ty0, &ty1);
+      dpx_cell_range(az[i], az[i], reach, oz, inv_cell, nz, &tz0, &tz1);
+      dpx_cell_range(ax[i], ax[i], reach, ox, inv_cx, nx, &tx0, &tx1);
+      if (ty0 > ty1 || tz0 > tz1 || tx0 > tx1) continue;
+      const maskv at = lane == (maskv)i;
+#ifdef DPX_COARSE_DOUBLE
+      if (dlevel[l] != 0xffffffffu) {
+        __global const double* dc = dcentres + dlevel[l];
+        __global const double* cxs = dc + 2;
+        const dmaskv dlane = DPX_DLANE_INDEX;
+        double ds[4] = {0, 0, 0, 0};
+        DPX_SEQ_SUM(double, dblv, dmaskv, long, DPX_DVLOAD, DPX_DVSTORE, DPX_DWIDTH, dlane, dpx_disum, (double)ax[i],
+                    (double)ay[i], (double)az[i], cxs, cxs + n, cxs + 2 * n, cxs + 3 * n, dc[0], dc[1], ds);
+        const dtilem dat = DPX_DTILE_MASK(at);
+        DF += select((dtilev)0, (dtilev)ds[0], dat);
+        if (k >= 4) {
+          DGX += select((dtilev)0, (dtilev)ds[1], dat);
+          DGY += select((dtilev)0, (dtilev)ds[2], dat);
+          DGZ += select((dtilev)0, (dtilev)ds[3], dat);
+        }
+        continue;
+      }
+#endif
+      __global const real* px = centres + 4 * (ulong)c_off;
+      real fs[4] = {0, 0, 0, 0};
+      DPX_SEQ_SUM(real, realv, maskv, int, DPX_VLOAD, DPX_VSTORE, FIELD_WIDTH, lane, dpx_isum, ax[i], ay[i], az[i], px,
+                  px + n, px + 2 * n, px + 3 * n, sigma, inv_sigma, fs);
+      F += select((realv)0, (realv)fs[0], at);
+      if (k >= 4) {
+        GX += select((realv)0, (realv)fs[1], at);
+        GY += select((realv)0, (realv)fs[2], at);
+        GZ += select((realv)0, (realv)fs[3], at);
+      }
+    }
+  }
+  real tf[FIELD_WIDTH], tgx[FIELD_WIDTH], tgy[FIELD_WIDTH], tgz[FIELD_WIDTH];
+  DPX_VSTORE(F, 0, tf);
+  DPX_VSTORE(GX, 0, tgx);
+  DPX_VSTORE(GY, 0, tgy);
+  DPX_VSTORE(GZ, 0, tgz);
+#ifdef DPX_COARSE_DOUBLE
+  double df[FIELD_WIDTH], dgx[FIELD_WIDTH], dgy[FIELD_WIDTH], dgz[FIELD_WIDTH];
+  DPX_DTILE_STORE(DF, 0, df);
+  DPX_DTILE_STORE(DGX, 0, dgx);
+  DPX_DTILE_STORE(DGY, 0, dgy);
+  DPX_DTILE_STORE(DGZ, 0, dgz);
+#endif
+  for (int i = 0; i < count; ++i) {
+    real sum[10] = {tf[i], tgx[i], tgy[i], tgz[i], 0, 0, 0, 0, 0, 0};
+#ifdef DPX_COARSE_DOUBLE
+    double dsum[10] = {df[i], dgx[i], dgy[i], dgz[i], 0, 0, 0, 0, 0, 0};
+#else
+    dreal dsum[10] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0}; /* unused */
+#endif
+    dpx_field_levels_v8(ax[i], ay[i], az[i], nt, nlevels, params, dims, cell_start, centres, dlevel, dcentres, k,
+                        sum, dsum);
+    const ulong q = first + (uint)i;
+    for (int c = 0; c < k; ++c) {
+#ifdef DPX_COARSE_DOUBLE
+      out[(ulong)k * q + (ulong)c] = (real)(dsum[c] + (double)sum[c]);
+#else
+      out[(ulong)k * q + (ulong)c] = sum[c];
+#endif
+    }
+  }
+}
+
+__kernel void eval_field_value_tile(const uint nq, __global const real* queries, const uint nlevels,
+                                    __global const real* params, __global const uint* dims,
+                                    __global const uint* cell_start, __global const real* centres, const real f0,
+                                    __global const uint* dlevel, __global const dreal* dcentres, const uint ntile,
+                                    __global real* out) {
+  dpx_field_tile(nq, queries, nlevels, params, dims, cell_start, centres, f0, dlevel, dcentres, ntile, 1, out);
+}
+
+__kernel void eval_field_gradient_tile(const uint nq, __global const real* queries, const uint nlevels,
+                                       __global const real* params, __global const uint* dims,
+                                       __global const uint* cell_start, __global const real* centres,
+                                       const real f0, __global const uint* dlevel,
+                                       __global const dreal* dcentres, const uint ntile, __global real* out) {
+  dpx_field_tile(nq, queries, nlevels, params, dims, cell_start, centres, f0, dlevel, dcentres, ntile, 4, out);
+}
 #endif /* REAL_IS_DOUBLE */

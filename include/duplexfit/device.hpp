@@ -90,9 +90,12 @@ struct DeviceTuning {
   /// fandisk_550k's largest error 2.85e-6 → 3.7e-7 of the box; a field with large weights at finer levels
   /// keeps more (wheel_118k 9.5e-6; docs/method.md §6).
   bool fieldCoarseDouble = false;
+  /// Values and gradients from the SIMD kernels sum all but the two finest levels for a tile of fieldWidth
+  /// neighbouring queries at once (FieldEvaluator evaluates a batch in Morton order; DUPLEXFIT_FIELD_TILES=0|1
+  /// overrides): 1.3-1.9x faster per point on fandisk_550k's and wheel_29k's fields (docs/method.md §6).
+  bool fieldTiles = false;
   /// "wg=… chunk=… lanes=… groups=… reductions=chunk|group field=vector16|vector8|scalar" (with "+double"
-  /// where fieldCoarseDouble), or "reference" for
-  /// the reference device.
+  /// where fieldCoarseDouble, "+tiles" where fieldTiles), or "reference" for the reference device.
   std::string describe() const;
 };
 

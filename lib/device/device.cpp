@@ -386,7 +386,7 @@ std::string DeviceTuning::describe() const {
   s << "wg=" << workGroup << " chunk=" << chunk << " lanes=" << lanes << " groups=" << groups
     << " reductions=" << (chunkReductions ? "chunk" : "group") << " field=";
   if (fieldVector) {
-    s << "vector" << fieldWidth << (fieldCoarseDouble ? "+double" : "");
+    s << "vector" << fieldWidth << (fieldCoarseDouble ? "+double" : "") << (fieldTiles ? "+tiles" : "");
   } else {
     s << "scalar";
   }

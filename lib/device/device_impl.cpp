@@ -49,6 +49,10 @@ LaunchParams chooseParams(const DeviceInfo& info, bool fp64Allowed) {
     // The coarse levels with large weights summed in double (kernels/eval_field.cl): the float sum's error
     // floor was 2.85e-6 of the box on fandisk_550k, 5e-5 on thin_torus_20k (docs/method.md section 6).
     p.fieldCoarseDouble = info.fp64;
+    // The coarse levels a tile of fieldWidth queries at a time (kernels/eval_field.cl, the _tile kernels):
+    // 1.3-1.9x faster per point at mesh vertices and grid nodes of fandisk_550k and wheel_29k
+    // (docs/benchmarks.md).
+    p.fieldTiles = true;
   } else {
     p.workGroup = 256;
     p.chunk = 512;
@@ -74,6 +78,11 @@ LaunchParams chooseParams(const DeviceInfo& info, bool fp64Allowed) {
     if (mode == "vector8") p.fieldWidth = 8;
     if (mode == "vector16") p.fieldWidth = 16;
   }
+  if (const char* v = std::getenv("DUPLEXFIT_FIELD_TILES"); v != nullptr && *v != '\0') {
+    const std::string mode = v;
+    if (mode != "0" && mode != "1") throw InvalidArgument("DUPLEXFIT_FIELD_TILES='" + mode + "' must be 0 or 1");
+    p.fieldTiles = mode == "1";
+  }
   if (const char* v = std::getenv("DUPLEXFIT_FIELD_COARSE"); v != nullptr && *v != '\0') {
     const std::string mode = v;
     if (mode != "double" && mode != "float") {
@@ -87,6 +96,7 @@ LaunchParams chooseParams(const DeviceInfo& info, bool fp64Allowed) {
   // The scalar kernel (GPUs) stays float, and so does a handle that may not use double
   // (DeviceOptions::allowFp64): its field program then has no double code at all.
   p.fieldCoarseDouble = p.fieldCoarseDouble && p.fieldVector && fp64Allowed;
+  p.fieldTiles = p.fieldTiles && p.fieldVector;  // the tile kernels are SIMD kernels
   p.workGroup = envSize("DUPLEXFIT_WG_SIZE", p.workGroup);
   p.chunk = envSize("DUPLEXFIT_CHUNK", p.chunk);
   p.lanes = envSize("DUPLEXFIT_LANES", p.lanes);
@@ -111,6 +121,7 @@ DeviceTuning LaunchParams::tuning() const {
   t.fieldVector = fieldVector;
   t.fieldWidth = fieldVector ? fieldWidth : 1;
   t.fieldCoarseDouble = fieldCoarseDouble;
+  t.fieldTiles = fieldTiles;
   return t;
 }
 

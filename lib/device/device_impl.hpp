@@ -30,6 +30,9 @@ struct LaunchParams {
   /// The SIMD kernels sum the levels with large weights in double (DPX_COARSE_DOUBLE in the float field
   /// program): with fieldVector on a device with fp64; DUPLEXFIT_FIELD_COARSE=double|float overrides.
   bool fieldCoarseDouble = false;
+  /// The SIMD kernels sum the coarse levels a tile of fieldWidth queries at a time (the _tile kernels):
+  /// with fieldVector; DUPLEXFIT_FIELD_TILES=0|1 overrides.
+  bool fieldTiles = false;
   DeviceTuning tuning() const;  ///< the public view (Device::tuning)
   std::string describe() const;
 };

@@ -217,6 +217,8 @@ void evalReference(const detail::EvaluatorImpl& e, const std::vector<T>& params,
 constexpr Eigen::Index kSortMinQueries = Eigen::Index{1} << 15;
 constexpr Eigen::Index kProbe = 4096;
 constexpr double kScattered = 4.0;
+/// Batches the tile kernels take in their own order (smaller ones: as they come).
+constexpr Eigen::Index kTileSortMin = 256;
 
 double medianStep(const Points& p, const std::vector<std::uint32_t>& order) {
   std::vector<double> step;
@@ -243,22 +245,78 @@ std::vector<std::uint32_t> evaluationOrder(const Points& u, std::size_t begin, s
   return detail::processingOrder(Points(chunk), 2);
 }
 
-// Evaluates normalised queries (#Q×3) into a #Q×k row-major array of normalised results, a chunk at a time,
-// each in Morton order where it comes scattered (evaluationOrder).
+/// The levels the tile kernels sum a tile at a time: all but the two finest (kernels/eval_field.cl), whose
+/// supports are not much wider than the distance between neighbouring queries (fandisk_550k's zero-mesh
+/// vertices: 0.34 µs a point with two levels left per query, 0.50 with one, 0.58 with none).
+cl_uint tileLevels(const detail::EvaluatorImpl& e) {
+  return e.levels <= 2 ? 0 : static_cast<cl_uint>(e.levels - 2);
+}
+
+/// Whether a batch of k results a query goes to the tile kernels: the float SIMD kernels on an OpenCL device
+/// with fieldTiles, value or gradient, and levels to tile.
+template <typename T>
+bool tileKernels(const detail::EvaluatorImpl& e, int k) {
+  return std::is_same_v<T, float> && !e.device.isReference() && e.device.impl()->params().fieldTiles && k <= 4 &&
+         tileLevels(e) > 0;
+}
+
+/// The order the tile kernels take a batch in (rows of u; empty: its own): a Morton order of the whole
+/// batch, so that each tile of consecutive queries is compact (a mesh's or a grid's own order is coherent
+/// at the scale of a few cells but not within 16 consecutive queries: fandisk_550k's zero mesh took 0.72 µs
+/// a point in its order against 0.36 sorted). Queries sharing a Morton cell (1/1024 of the batch's box a
+/// side) follow in the order of their coordinates, so the order, and with it each tile and each query's
+/// value, depends on the batch's points and not on the order they come in.
+std::vector<std::uint32_t> tileOrder(const Points& u) {
+  const auto n = static_cast<std::size_t>(u.rows());
+  if (n < static_cast<std::size_t>(kTileSortMin) || n > std::numeric_limits<std::uint32_t>::max() || !u.allFinite()) {
+    return {};
+  }
+  const std::vector<std::uint64_t> key = detail::mortonSortedKeys(n, [&u](std::size_t i, double* x) {
+    for (int a = 0; a < 3; ++a) x[a] = u(static_cast<Eigen::Index>(i), a);
+  });
+  std::vector<std::uint32_t> order(n);
+  for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<std::uint32_t>(key[i] & 0xffffffffU);
+  const auto byCoordinates = [&u](std::uint32_t a, std::uint32_t b) {
+    for (int c = 0; c < 3; ++c) {
+      const double x = u(static_cast<Eigen::Index>(a), c), y = u(static_cast<Eigen::Index>(b), c);
+      if (x != y) return x < y;
+    }
+    return false;  // the same point: either order gives the same tiles
+  };
+  for (std::size_t run = 0; run < n;) {
+    std::size_t end = run + 1;
+    while (end < n && (key[end] >> 32) == (key[run] >> 32)) ++end;
+    if (end - run > 1) {
+      std::sort(order.begin() + static_cast<std::ptrdiff_t>(run), order.begin() + static_cast<std::ptrdiff_t>(end),
+                byCoordinates);
+    }
+    run = end;
+  }
+  return order;
+}
+
+// Evaluates normalised queries (#Q×3) into a #Q×k row-major array of normalised results, a chunk at a time:
+// for the tile kernels the whole batch in its tile order (tileOrder), else each chunk in Morton order where
+// it comes scattered (evaluationOrder).
 std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u, int k) {
   const auto nq = static_cast<std::size_t>(u.rows());
   std::vector<double> result(nq * static_cast<std::size_t>(k));
   if (nq == 0) return result;
   detail::dispatch(e.precision, [&](auto zero) {
     using T = decltype(zero);
+    const bool tiled = tileKernels<T>(e, k);
+    const std::vector<std::uint32_t> sorted = tiled ? tileOrder(u) : std::vector<std::uint32_t>{};
     for (std::size_t begin = 0; begin < nq; begin += kChunk) {
       const std::size_t m = std::min(kChunk, nq - begin);
-      const std::vector<std::uint32_t> order = evaluationOrder(u, begin, m);
-      // Query i of the chunk is row begin + row(i) of u.
-      const auto row = [&order](std::size_t i) { return order.empty() ? i : static_cast<std::size_t>(order[i]); };
+      const std::vector<std::uint32_t> order = tiled ? std::vector<std::uint32_t>{} : evaluationOrder(u, begin, m);
+      // Query i of the chunk is row row(i) of u.
+      const auto row = [&order, &sorted, begin](std::size_t i) {
+        return !sorted.empty() ? static_cast<std::size_t>(sorted[begin + i])
+                               : begin + (order.empty() ? i : static_cast<std::size_t>(order[i]));
+      };
       std::vector<T> q(3 * m), out(static_cast<std::size_t>(k) * m);
       for (std::size_t i = 0; i < m; ++i) {
-        const auto r = static_cast<Eigen::Index>(begin + row(i));
+        const auto r = static_cast<Eigen::Index>(row(i));
         for (int c = 0; c < 3; ++c) q[3 * i + static_cast<std::size_t>(c)] = static_cast<T>(u(r, c));
       }
       if (e.device.isReference()) {
@@ -285,26 +343,38 @@ std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u,
         const cl::Buffer& ob = e.resultBuf;
         DUPLEXFIT_CL_CHECK(impl.queue().enqueueWriteBuffer(qb, CL_TRUE, 0, qBytes, q.data()));
         const bool v8 = impl.params().fieldVector && std::is_same_v<T, float>;  // float only (eval_field.cl)
-        const char* name = k == 1   ? (v8 ? "eval_field_value_v8" : "eval_field_value")
+        const char* name = tiled    ? (k == 1 ? "eval_field_value_tile" : "eval_field_gradient_tile")
+                           : k == 1 ? (v8 ? "eval_field_value_v8" : "eval_field_value")
                            : k == 4 ? (v8 ? "eval_field_gradient_v8" : "eval_field_gradient")
                                     : (v8 ? "eval_field_hessian_v8" : "eval_field_hessian");
         cl::Kernel& kern = impl.kernel("field", e.precision, name);
         detail::setArgs(kern, name, static_cast<cl_uint>(m), qb, e.levels, e.paramsBuf.buffer, e.dimsBuf.buffer,
                         e.cellStartBuf.buffer, e.centresBuf.buffer);
         detail::setRealArg(kern, 7, e.f0, e.precision, name);
+        std::size_t items = m, local = impl.params().workGroup;
         if (v8) {
           detail::setArg(kern, 8, e.dlevelBuf.buffer, name);
           detail::setArg(kern, 9, e.dcentresBuf.buffer, name);
-          detail::setArg(kern, 10, ob, name);
+          if (tiled) {
+            // One work-item a tile of fieldWidth queries, in work-groups of as many queries as the _v8
+            // kernels' (a batch of a few thousand is still spread over every core).
+            const auto width = static_cast<std::size_t>(impl.params().fieldWidth);
+            detail::setArg(kern, 10, tileLevels(e), name);
+            detail::setArg(kern, 11, ob, name);
+            items = (m + width - 1) / width;
+            local = std::max<std::size_t>(1, local / width);
+          } else {
+            detail::setArg(kern, 10, ob, name);
+          }
         } else {
           detail::setArg(kern, 8, ob, name);
         }
-        impl.launch(kern, m, impl.params().workGroup, name);
+        impl.launch(kern, items, local, name);
         DUPLEXFIT_CL_CHECK(impl.queue().enqueueReadBuffer(ob, CL_TRUE, 0, out.size() * sizeof(T), out.data()));
       }
       const auto width = static_cast<std::size_t>(k);
       for (std::size_t i = 0; i < m; ++i) {
-        for (std::size_t c = 0; c < width; ++c) result[width * (begin + row(i)) + c] = static_cast<double>(out[width * i + c]);
+        for (std::size_t c = 0; c < width; ++c) result[width * row(i) + c] = static_cast<double>(out[width * i + c]);
       }
     }
   });

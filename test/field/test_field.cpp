@@ -217,6 +217,106 @@ TEST_SUITE("field") {
     CHECK(differ == 0);
   }
 
+  TEST_CASE("field: the tile kernels give a point the same bits in any batch, and the per-query kernels' sum") {
+    DUPLEXFIT_OPENCL_DEVICE(dev);
+    if (!dev.tuning().fieldVector) {
+      MESSAGE("skipped: the test device runs the scalar field kernel (no tiles)");
+      return;
+    }
+    // A field shaped like a fit's hierarchy (six levels, σ halving, the centres near a sphere of radius 0.4,
+    // σ_1 = 1.09): the tile kernels sum its levels 1-4 a tile of 8 or 16 queries at a time.
+    std::mt19937 rng(23);
+    std::normal_distribution<double> g(0.0, 1.0);
+    std::uniform_real_distribution<double> s(-1.0, 1.0);
+    const int counts[6] = {24, 141, 857, 4000, 12000, 30000};
+    std::vector<FieldLevel> levels;
+    for (int k = 0; k < 6; ++k) {
+      FieldLevel l;
+      l.sigma = 1.09 / (1 << k);
+      l.centres.resize(counts[k], 3);
+      l.weights.resize(counts[k]);
+      for (int j = 0; j < counts[k]; ++j) {
+        const Eigen::Vector3d d = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
+        l.centres.row(j) = ((0.4 + 0.3 * l.sigma * s(rng)) * d).transpose();
+        l.weights[j] = (k < 2 ? 1.0 : 0.1) * s(rng);
+      }
+      levels.push_back(std::move(l));
+    }
+    const ImplicitField f(Normalization{}, -1.0, std::move(levels), {},
+                          Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-0.5), Eigen::Vector3d::Constant(0.5)));
+    // Queries as a mesh gives them: 20,000 points near the sphere in a spiral (neighbours in sequence).
+    const int n = 20000;
+    Points q(n, 3);
+    for (int i = 0; i < n; ++i) {
+      const double z = 1.0 - (2.0 * i + 1.0) / n, a = 2.399963229728653 * i, rho = std::sqrt(1.0 - z * z);
+      q.row(i) << (0.4 + 0.01 * s(rng)) * rho * std::cos(a), (0.4 + 0.01 * s(rng)) * rho * std::sin(a), 0.4 * z;
+    }
+    std::vector<Eigen::Index> perm;
+    const Points shuffled = shuffledRows(q, 29, perm);
+    // Scattered: every 67th point (299, sorted in Morton order: each tile wider than the finer tiled levels'
+    // σ) and every 211th (95, below the size sorted: tiles in the batch's own order).
+    const auto strided = [&q](int step) {
+      Points out((q.rows() + step - 1) / step, 3);
+      for (Eigen::Index r = 0; r < out.rows(); ++r) out.row(r) = q.row(r * step);
+      return out;
+    };
+    for (const char* kernel : {"vector8", "vector16"}) {
+      CAPTURE(kernel);
+      setenv("DUPLEXFIT_FIELD_KERNEL", kernel, 1);
+      const Device tiles = Device::open(dev.info().spec);
+      setenv("DUPLEXFIT_FIELD_TILES", "0", 1);
+      const Device perQuery = Device::open(dev.info().spec);
+      unsetenv("DUPLEXFIT_FIELD_TILES");
+      unsetenv("DUPLEXFIT_FIELD_KERNEL");
+      REQUIRE(tiles.tuning().fieldTiles);
+      CHECK(tiles.tuning().describe().find("+tiles") != std::string::npos);
+      REQUIRE_FALSE(perQuery.tuning().fieldTiles);
+      CHECK(perQuery.tuning().describe().find("+tiles") == std::string::npos);
+      for (const FieldDerivatives d : {FieldDerivatives::None, FieldDerivatives::Gradient}) {
+        const FieldSamples a = f.evaluate(tiles, q, d);
+        const FieldSamples b = f.evaluate(tiles, shuffled, d);
+        const FieldSamples ref = f.evaluate(perQuery, q, d);
+        int differ = 0;
+        for (Eigen::Index r = 0; r < q.rows(); ++r) {
+          const Eigen::Index i = perm[static_cast<std::size_t>(r)];
+          differ += b.values[r] != a.values[i] || (d == FieldDerivatives::Gradient && b.gradients.row(r) != a.gradients.row(i));
+        }
+        CHECK(differ == 0);
+        for (const int step : {67, 211}) {
+          CAPTURE(step);
+          const FieldSamples c = f.evaluate(tiles, strided(step), d);
+          int other = 0;
+          for (Eigen::Index r = 0; r < c.values.rows(); ++r) {
+            other += c.values[r] != a.values[r * step] ||
+                     (d == FieldDerivatives::Gradient && c.gradients.row(r) != a.gradients.row(r * step));
+          }
+          CHECK(other == 0);
+        }
+        // A point alone (a tile of one query) and the per-query kernels (another order of the additions).
+        double vs = 0.0, gs = 0.0;
+        for (Eigen::Index r = 0; r < q.rows(); r += 997) {
+          const FieldSamples one = f.evaluate(tiles, q.middleRows(r, 1), d);
+          CHECK(one.values[0] == a.values[r]);
+          if (d == FieldDerivatives::Gradient) CHECK(one.gradients.row(0) == a.gradients.row(r));
+        }
+        for (Eigen::Index r = 0; r < q.rows(); ++r) {
+          vs = std::max(vs, std::abs(a.values[r] - ref.values[r]));
+          if (d == FieldDerivatives::Gradient) gs = std::max(gs, (a.gradients.row(r) - ref.gradients.row(r)).norm());
+        }
+        CHECK(vs <= 1e-6);
+        CHECK(gs <= 1e-4);
+        // Against the brute-force sum in double.
+        double exact = 0.0;
+        for (Eigen::Index r = 0; r < q.rows(); r += 41) exact = std::max(exact, std::abs(a.values[r] - f.value(q.row(r).transpose())));
+        CHECK(exact <= 1e-6);
+        CHECK(a.values.cwiseAbs().maxCoeff() > 0.01);
+      }
+    }
+    setenv("DUPLEXFIT_FIELD_TILES", "yes", 1);
+    CHECK_THROWS_AS((void)Device::open(dev.info().spec), InvalidArgument);
+    unsetenv("DUPLEXFIT_FIELD_TILES");
+  }
+
   TEST_CASE("field: the SIMD kernel's width is the device's native float vector unless DUPLEXFIT_FIELD_KERNEL says") {
     DUPLEXFIT_OPENCL_DEVICE(dev);
     const Device d = openWithFieldKernel(dev.info().spec, "vector");
