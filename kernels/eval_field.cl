@@ -305,19 +305,20 @@ DPX_EVAL_KERNEL_V8(eval_field_hessian_v8, 10)
  * the box (a vector test, the kept ones listed from a bit mask), and its terms are then computed for all
  * the tile's queries in one vector step, each lane adding them in the centres' order (terms outside a
  * lane's support are +0, which add nothing). Where the tile's box is wider than DPX_TILE_SPAN sigma in some
- * axis (scattered queries), the level is summed a query at a time, W centres a step, each term within the
- * support added on its own in the same order (DPX_SEQ_SUM): the same bits. So a query's value does not
- * depend on the other queries of its batch or on their order. The levels [ntile, nlevels) are summed per
- * query as in the _v8 kernels. Value (K = 1) and gradient (K = 4). */
+ * axis, its halves, else its quarters, are summed so with the other lanes masked; a quarter still wider
+ * (scattered queries) is summed a query at a time, W centres a step, each term within the support added on
+ * its own in the same order (DPX_SEQ_SUM): the same bits. So a query's value does not depend on the other
+ * queries of its batch or on their order. The levels [ntile, nlevels) are summed per query as in the _v8
+ * kernels. Value (K = 1) and gradient (K = 4). */
 #ifndef DPX_TILE_SPAN
 #define DPX_TILE_SPAN 1.0f
 #endif
 
-#define DPX_TILE_STEP(ST, VT, MT, QX, QY, QZ, CX, CY, CZ, WC, S2, ISG, HS, F, GX, GY, GZ)                     \
+#define DPX_TILE_STEP(ST, VT, MT, QX, QY, QZ, ACTIVE, CX, CY, CZ, WC, S2, ISG, HS, F, GX, GY, GZ)             \
   do {                                                                                                      \
     const VT ux = (QX) - (CX), uy = (QY) - (CY), uz = (QZ) - (CZ);                                          \
     const VT d2 = ux * ux + uy * uy + uz * uz;                                                              \
-    const MT inside = d2 < (VT)(S2);                                                                        \
+    const MT inside = (d2 < (VT)(S2)) & (ACTIVE);                                                           \
     const VT w = select((VT)0, (VT)(WC), inside);                                                           \
     const VT r = sqrt(d2) * (ISG);                                                                          \
     const VT t = fmax((VT)1 - r, (VT)0);                                                                    \
@@ -388,7 +389,7 @@ DPX_EVAL_KERNEL_V8(eval_field_hessian_v8, 10)
 
 /* A float level over the tile: the cells' centres FIELD_WIDTH at a time, kept by a vector test
  * of their distance to the box [LO, HI] and listed without branches, then one step each. */
-#define DPX_TILE_SUM(LOX, LOY, LOZ, HIX, HIY, HIZ, PX, PY, PZ, PW, SIGMA, INV_SIGMA, F, GX, GY, GZ)           \
+#define DPX_TILE_SUM(LOX, LOY, LOZ, HIX, HIY, HIZ, ACTIVE, PX, PY, PZ, PW, SIGMA, INV_SIGMA, F, GX, GY, GZ)   \
   do {                                                                                                      \
     const real sg_ = (SIGMA), isg_ = (INV_SIGMA);                                                           \
     const real s2_ = sg_ * sg_;                                                                             \
@@ -412,8 +413,8 @@ DPX_EVAL_KERNEL_V8(eval_field_hessian_v8, 10)
           while (bits_ != 0) {                                                                              \
             const uint j = j0 + (uint)(31 - clz(bits_ & -bits_));                                           \
             bits_ &= bits_ - 1;                                                                             \
-            DPX_TILE_STEP(real, realv, maskv, qx, qy, qz, (PX)[j], (PY)[j], (PZ)[j], (PW)[j], s2_, isg_,     \
-                          hs_, f_, gx_, gy_, gz_);                                                          \
+            DPX_TILE_STEP(real, realv, maskv, qx, qy, qz, ACTIVE, (PX)[j], (PY)[j], (PZ)[j], (PW)[j], s2_,   \
+                          isg_, hs_, f_, gx_, gy_, gz_);                                                    \
           }                                                                                                 \
         }                                                                                                   \
       }                                                                                                     \
@@ -427,7 +428,7 @@ DPX_EVAL_KERNEL_V8(eval_field_hessian_v8, 10)
   } while (0)
 
 /* A double level (few centres, most of them within reach): every centre of the cells, one step each. */
-#define DPX_TILE_SUM_D(PX, PY, PZ, PW, SIGMA, INV_SIGMA, F, GX, GY, GZ)                                      \
+#define DPX_TILE_SUM_D(ACTIVE, PX, PY, PZ, PW, SIGMA, INV_SIGMA, F, GX, GY, GZ)                              \
   do {                                                                                                      \
     const double sg_ = (SIGMA), isg_ = (INV_SIGMA);                                                         \
     const double s2_ = sg_ * sg_;                                                                           \
@@ -439,8 +440,8 @@ DPX_EVAL_KERNEL_V8(eval_field_hessian_v8, 10)
         const uint b = cell_start[row + (uint)tx0];                                                         \
         const uint e = cell_start[row + (uint)tx1 + 1];                                                     \
         for (uint j = b; j < e; ++j) {                                                                      \
-          DPX_TILE_STEP(double, dtilev, dtilem, dqx, dqy, dqz, (PX)[j], (PY)[j], (PZ)[j], (PW)[j], s2_,     \
-                        isg_, hs_, f_, gx_, gy_, gz_);                                                      \
+          DPX_TILE_STEP(double, dtilev, dtilem, dqx, dqy, dqz, ACTIVE, (PX)[j], (PY)[j], (PZ)[j], (PW)[j],  \
+                        s2_, isg_, hs_, f_, gx_, gy_, gz_);                                                 \
         }                                                                                                   \
       }                                                                                                     \
     }                                                                                                       \
@@ -504,63 +505,85 @@ __attribute__((always_inline)) inline void dpx_field_tile(const uint nq, __globa
     const uint cs_off = dims[5 * l + 3], c_off = dims[5 * l + 4];
     const uint n = cell_start[cs_off + (uint)(nx * ny * nz)];
     const real reach = sigma * (real)1.0009765625;
-    const bool wide = hix - lox > DPX_TILE_SPAN * sigma || hiy - loy > DPX_TILE_SPAN * sigma ||
-                      hiz - loz > DPX_TILE_SPAN * sigma;
+    const real span = DPX_TILE_SPAN * sigma;
     int ty0, ty1, tz0, tz1, tx0, tx1;
-    if (!wide) {
-      /* Rows within sigma of the box; a cell is at least sigma deep in y and z, so these hold every row
-       * dpx_field_levels_v8 visits with a centre in a query's support. */
-      dpx_cell_range(loy, hiy, reach, oy, inv_cell, ny, &ty0, &ty1);
-      dpx_cell_range(loz, hiz, reach, oz, inv_cell, nz, &tz0, &tz1);
-      dpx_cell_range(lox, hix, reach, ox, inv_cx, nx, &tx0, &tx1);
-      if (ty0 > ty1 || tz0 > tz1 || tx0 > tx1) continue;
-#ifdef DPX_COARSE_DOUBLE
-      if (dlevel[l] != 0xffffffffu) {
-        __global const double* dc = dcentres + dlevel[l];
-        __global const double* cxs = dc + 2;
-        DPX_TILE_SUM_D(cxs, cxs + n, cxs + 2 * n, cxs + 3 * n, dc[0], dc[1], DF, DGX, DGY, DGZ);
-        continue;
-      }
-#endif
-      __global const real* px = centres + 4 * (ulong)c_off;
-      DPX_TILE_SUM(lox, loy, loz, hix, hiy, hiz, px, px + n, px + 2 * n, px + 3 * n, sigma, inv_sigma, F,
-                   GX, GY, GZ);
-      continue;
-    }
-    /* A tile wider than its level's reach (scattered queries): each query on its own, the same sum. */
-    for (int i = 0; i < count; ++i) {
-      dpx_cell_range(ay[i], ay[i], reach, oy, inv_cell, ny, &ty0, &ty1);
-      dpx_cell_range(az[i], az[i], reach, oz, inv_cell, nz, &tz0, &tz1);
-      dpx_cell_range(ax[i], ax[i], reach, ox, inv_cx, nx, &tx0, &tx1);
-      if (ty0 > ty1 || tz0 > tz1 || tx0 > tx1) continue;
-      const maskv at = lane == (maskv)i;
-#ifdef DPX_COARSE_DOUBLE
-      if (dlevel[l] != 0xffffffffu) {
-        __global const double* dc = dcentres + dlevel[l];
-        __global const double* cxs = dc + 2;
-        const dmaskv dlane = DPX_DLANE_INDEX;
-        double ds[4] = {0, 0, 0, 0};
-        DPX_SEQ_SUM(double, dblv, dmaskv, long, DPX_DVLOAD, DPX_DVSTORE, DPX_DWIDTH, dlane, dpx_disum, (double)ax[i],
-                    (double)ay[i], (double)az[i], cxs, cxs + n, cxs + 2 * n, cxs + 3 * n, dc[0], dc[1], ds);
-        const dtilem dat = DPX_DTILE_MASK(at);
-        DF += select((dtilev)0, (dtilev)ds[0], dat);
-        if (k >= 4) {
-          DGX += select((dtilev)0, (dtilev)ds[1], dat);
-          DGY += select((dtilev)0, (dtilev)ds[2], dat);
-          DGZ += select((dtilev)0, (dtilev)ds[3], dat);
+    /* Groups of lanes: the whole tile, else its halves, else its quarters (consecutive queries lie close in
+     * the batch's Morton order), each summed as a tile with the other lanes masked where its box fits in
+     * DPX_TILE_SPAN sigma, else a query at a time. */
+    for (int g0 = 0; g0 < count;) {
+      int size = FIELD_WIDTH;
+      while (g0 % size != 0) size /= 2;
+      for (;; size /= 2) {
+        const int g1 = min(g0 + size, count);
+        real gx0 = ax[g0], gy0 = ay[g0], gz0 = az[g0], gx1 = ax[g0], gy1 = ay[g0], gz1 = az[g0];
+        for (int i = g0 + 1; i < g1; ++i) {
+          gx0 = fmin(gx0, ax[i]), gy0 = fmin(gy0, ay[i]), gz0 = fmin(gz0, az[i]);
+          gx1 = fmax(gx1, ax[i]), gy1 = fmax(gy1, ay[i]), gz1 = fmax(gz1, az[i]);
         }
-        continue;
-      }
+        if (gx1 - gx0 <= span && gy1 - gy0 <= span && gz1 - gz0 <= span) {
+          const maskv active = lane >= (maskv)g0 & lane < (maskv)g1;
+          g0 = g1;
+          /* Rows within sigma of the box; a cell is at least sigma deep in y and z, so these hold every
+           * row dpx_field_levels_v8 visits with a centre in a query's support. */
+          dpx_cell_range(gy0, gy1, reach, oy, inv_cell, ny, &ty0, &ty1);
+          dpx_cell_range(gz0, gz1, reach, oz, inv_cell, nz, &tz0, &tz1);
+          dpx_cell_range(gx0, gx1, reach, ox, inv_cx, nx, &tx0, &tx1);
+          if (ty0 > ty1 || tz0 > tz1 || tx0 > tx1) break;
+#ifdef DPX_COARSE_DOUBLE
+          if (dlevel[l] != 0xffffffffu) {
+            __global const double* dc = dcentres + dlevel[l];
+            __global const double* cxs = dc + 2;
+            DPX_TILE_SUM_D(DPX_DTILE_MASK(active), cxs, cxs + n, cxs + 2 * n, cxs + 3 * n, dc[0], dc[1], DF, DGX,
+                           DGY, DGZ);
+            break;
+          }
 #endif
-      __global const real* px = centres + 4 * (ulong)c_off;
-      real fs[4] = {0, 0, 0, 0};
-      DPX_SEQ_SUM(real, realv, maskv, int, DPX_VLOAD, DPX_VSTORE, FIELD_WIDTH, lane, dpx_isum, ax[i], ay[i], az[i], px,
-                  px + n, px + 2 * n, px + 3 * n, sigma, inv_sigma, fs);
-      F += select((realv)0, (realv)fs[0], at);
-      if (k >= 4) {
-        GX += select((realv)0, (realv)fs[1], at);
-        GY += select((realv)0, (realv)fs[2], at);
-        GZ += select((realv)0, (realv)fs[3], at);
+          __global const real* px = centres + 4 * (ulong)c_off;
+          DPX_TILE_SUM(gx0, gy0, gz0, gx1, gy1, gz1, active, px, px + n, px + 2 * n, px + 3 * n, sigma, inv_sigma, F,
+                       GX, GY, GZ);
+          break;
+        }
+        if (size > FIELD_WIDTH / 4) continue;
+        /* A quarter still wider than its level's reach (scattered queries): a query at a time, the same
+         * sum. */
+        for (int i = g0; i < g1; ++i) {
+          dpx_cell_range(ay[i], ay[i], reach, oy, inv_cell, ny, &ty0, &ty1);
+          dpx_cell_range(az[i], az[i], reach, oz, inv_cell, nz, &tz0, &tz1);
+          dpx_cell_range(ax[i], ax[i], reach, ox, inv_cx, nx, &tx0, &tx1);
+          if (ty0 > ty1 || tz0 > tz1 || tx0 > tx1) continue;
+          const maskv at = lane == (maskv)i;
+#ifdef DPX_COARSE_DOUBLE
+          if (dlevel[l] != 0xffffffffu) {
+            __global const double* dc = dcentres + dlevel[l];
+            __global const double* cxs = dc + 2;
+            const dmaskv dlane = DPX_DLANE_INDEX;
+            double ds[4] = {0, 0, 0, 0};
+            DPX_SEQ_SUM(double, dblv, dmaskv, long, DPX_DVLOAD, DPX_DVSTORE, DPX_DWIDTH, dlane, dpx_disum,
+                        (double)ax[i], (double)ay[i], (double)az[i], cxs, cxs + n, cxs + 2 * n, cxs + 3 * n, dc[0],
+                        dc[1], ds);
+            const dtilem dat = DPX_DTILE_MASK(at);
+            DF += select((dtilev)0, (dtilev)ds[0], dat);
+            if (k >= 4) {
+              DGX += select((dtilev)0, (dtilev)ds[1], dat);
+              DGY += select((dtilev)0, (dtilev)ds[2], dat);
+              DGZ += select((dtilev)0, (dtilev)ds[3], dat);
+            }
+            continue;
+          }
+#endif
+          __global const real* px = centres + 4 * (ulong)c_off;
+          real fs[4] = {0, 0, 0, 0};
+          DPX_SEQ_SUM(real, realv, maskv, int, DPX_VLOAD, DPX_VSTORE, FIELD_WIDTH, lane, dpx_isum, ax[i], ay[i], az[i],
+                      px, px + n, px + 2 * n, px + 3 * n, sigma, inv_sigma, fs);
+          F += select((realv)0, (realv)fs[0], at);
+          if (k >= 4) {
+            GX += select((realv)0, (realv)fs[1], at);
+            GY += select((realv)0, (realv)fs[2], at);
+            GZ += select((realv)0, (realv)fs[3], at);
+          }
+        }
+        g0 = g1;
+        break;
       }
     }
   }

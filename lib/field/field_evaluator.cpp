@@ -356,13 +356,14 @@ std::vector<double> evaluateRaw(const detail::EvaluatorImpl& e, const Points& u,
           detail::setArg(kern, 8, e.dlevelBuf.buffer, name);
           detail::setArg(kern, 9, e.dcentresBuf.buffer, name);
           if (tiled) {
-            // One work-item a tile of fieldWidth queries, in work-groups of as many queries as the _v8
-            // kernels' (a batch of a few thousand is still spread over every core).
+            // One work-item a tile of fieldWidth queries; smaller work-groups for a small batch, so that a
+            // few thousand queries still make enough groups to spread over the cores (16 at least: each
+            // group costs PoCL a few microseconds, so large batches keep the usual size).
             const auto width = static_cast<std::size_t>(impl.params().fieldWidth);
             detail::setArg(kern, 10, tileLevels(e), name);
             detail::setArg(kern, 11, ob, name);
             items = (m + width - 1) / width;
-            local = std::max<std::size_t>(1, local / width);
+            while (local > 1 && items < 16 * local) local /= 2;
           } else {
             detail::setArg(kern, 10, ob, name);
           }
