@@ -387,6 +387,17 @@ DPX_EVAL_KERNEL_V8(eval_field_hessian_v8, 10)
     }                                                                                                       \
   } while (0)
 
+/* A level's lane sums f_, gx_, gy_, gz_ added to the tile's running sums. */
+#define DPX_TILE_ADD(F, GX, GY, GZ) \
+  do {                              \
+    (F) += f_;                      \
+    if (k >= 4) {                   \
+      (GX) += gx_;                  \
+      (GY) += gy_;                  \
+      (GZ) += gz_;                  \
+    }                               \
+  } while (0)
+
 /* A float level over the tile: the cells' centres FIELD_WIDTH at a time, kept by a vector test
  * of their distance to the box [LO, HI] and listed without branches, then one step each. */
 #define DPX_TILE_SUM(LOX, LOY, LOZ, HIX, HIY, HIZ, ACTIVE, PX, PY, PZ, PW, SIGMA, INV_SIGMA, F, GX, GY, GZ)   \
@@ -419,12 +430,7 @@ DPX_EVAL_KERNEL_V8(eval_field_hessian_v8, 10)
         }                                                                                                   \
       }                                                                                                     \
     }                                                                                                       \
-    (F) += f_;                                                                                              \
-    if (k >= 4) {                                                                                           \
-      (GX) += gx_;                                                                                          \
-      (GY) += gy_;                                                                                          \
-      (GZ) += gz_;                                                                                          \
-    }                                                                                                       \
+    DPX_TILE_ADD(F, GX, GY, GZ);                                                                            \
   } while (0)
 
 /* A double level (few centres, most of them within reach): every centre of the cells, one step each. */
@@ -445,12 +451,7 @@ DPX_EVAL_KERNEL_V8(eval_field_hessian_v8, 10)
         }                                                                                                   \
       }                                                                                                     \
     }                                                                                                       \
-    (F) += f_;                                                                                              \
-    if (k >= 4) {                                                                                           \
-      (GX) += gx_;                                                                                          \
-      (GY) += gy_;                                                                                          \
-      (GZ) += gz_;                                                                                          \
-    }                                                                                                       \
+    DPX_TILE_ADD(F, GX, GY, GZ);                                                                            \
   } while (0)
 
 /* The cells [*c0, *c1] of an axis with n cells (origin o, 1/cell inv) that [lo - reach, hi + reach] meets

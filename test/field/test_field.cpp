@@ -8,6 +8,7 @@
 #include <functional>
 #include <random>
 #include <sstream>
+#include <utility>
 #include <vector>
 
 #include "duplexfit/error.hpp"
@@ -18,14 +19,19 @@ using namespace duplexfit;
 
 namespace {
 
+/// The OpenCL device `spec` opened with the environment variables `env` set (and unset again).
+Device openWithEnv(const std::string& spec, const std::vector<std::pair<const char*, const char*>>& env) {
+  for (const auto& [name, value] : env) setenv(name, value, 1);
+  Device d = Device::open(spec);
+  for (const auto& [name, value] : env) unsetenv(name);
+  return d;
+}
+
 /// The OpenCL device `spec` opened with DUPLEXFIT_FIELD_KERNEL=`kernel` (vector8, vector16: the SIMD _v8
 /// kernels 8 or 16 centres a step, a CPU device's default at its native width; scalar: one centre a step, a
 /// GPU's).
 Device openWithFieldKernel(const std::string& spec, const char* kernel) {
-  setenv("DUPLEXFIT_FIELD_KERNEL", kernel, 1);
-  Device d = Device::open(spec);
-  unsetenv("DUPLEXFIT_FIELD_KERNEL");
-  return d;
+  return openWithEnv(spec, {{"DUPLEXFIT_FIELD_KERNEL", kernel}});
 }
 
 /// Runs `body` on the reference device and the OpenCL test device (when there is one) with each of its
@@ -262,12 +268,9 @@ TEST_SUITE("field") {
     };
     for (const char* kernel : {"vector8", "vector16"}) {
       CAPTURE(kernel);
-      setenv("DUPLEXFIT_FIELD_KERNEL", kernel, 1);
-      const Device tiles = Device::open(dev.info().spec);
-      setenv("DUPLEXFIT_FIELD_TILES", "0", 1);
-      const Device perQuery = Device::open(dev.info().spec);
-      unsetenv("DUPLEXFIT_FIELD_TILES");
-      unsetenv("DUPLEXFIT_FIELD_KERNEL");
+      const Device tiles = openWithFieldKernel(dev.info().spec, kernel);
+      const Device perQuery =
+          openWithEnv(dev.info().spec, {{"DUPLEXFIT_FIELD_KERNEL", kernel}, {"DUPLEXFIT_FIELD_TILES", "0"}});
       REQUIRE(tiles.tuning().fieldTiles);
       CHECK(tiles.tuning().describe().find("+tiles") != std::string::npos);
       REQUIRE_FALSE(perQuery.tuning().fieldTiles);
@@ -279,7 +282,8 @@ TEST_SUITE("field") {
         int differ = 0;
         for (Eigen::Index r = 0; r < q.rows(); ++r) {
           const Eigen::Index i = perm[static_cast<std::size_t>(r)];
-          differ += b.values[r] != a.values[i] || (d == FieldDerivatives::Gradient && b.gradients.row(r) != a.gradients.row(i));
+          differ += b.values[r] != a.values[i] ||
+                    (d == FieldDerivatives::Gradient && b.gradients.row(r) != a.gradients.row(i));
         }
         CHECK(differ == 0);
         for (const int step : {67, 211}) {
@@ -307,7 +311,9 @@ TEST_SUITE("field") {
         CHECK(gs <= 1e-4);
         // Against the brute-force sum in double.
         double exact = 0.0;
-        for (Eigen::Index r = 0; r < q.rows(); r += 41) exact = std::max(exact, std::abs(a.values[r] - f.value(q.row(r).transpose())));
+        for (Eigen::Index r = 0; r < q.rows(); r += 41) {
+          exact = std::max(exact, std::abs(a.values[r] - f.value(q.row(r).transpose())));
+        }
         CHECK(exact <= 1e-6);
         CHECK(a.values.cwiseAbs().maxCoeff() > 0.01);
       }
@@ -378,12 +384,9 @@ TEST_SUITE("field") {
     };
     for (const char* kernel : {"vector8", "vector16"}) {
       CAPTURE(kernel);
-      setenv("DUPLEXFIT_FIELD_KERNEL", kernel, 1);
-      const Device mixed = Device::open(dev.info().spec);
-      setenv("DUPLEXFIT_FIELD_COARSE", "float", 1);
-      const Device plain = Device::open(dev.info().spec);
-      unsetenv("DUPLEXFIT_FIELD_COARSE");
-      unsetenv("DUPLEXFIT_FIELD_KERNEL");
+      const Device mixed = openWithFieldKernel(dev.info().spec, kernel);
+      const Device plain =
+          openWithEnv(dev.info().spec, {{"DUPLEXFIT_FIELD_KERNEL", kernel}, {"DUPLEXFIT_FIELD_COARSE", "float"}});
       REQUIRE(mixed.tuning().fieldCoarseDouble);
       CHECK(mixed.tuning().describe().find("+double") != std::string::npos);
       CHECK_FALSE(plain.tuning().fieldCoarseDouble);
