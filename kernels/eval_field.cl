@@ -482,15 +482,11 @@ __attribute__((always_inline)) inline void dpx_field_tile(const uint nq, __globa
     ay[i] = queries[3 * q + 1];
     az[i] = queries[3 * q + 2];
   }
-  real lox = ax[0], loy = ay[0], loz = az[0], hix = ax[0], hiy = ay[0], hiz = az[0];
-  for (int i = 1; i < count; ++i) {
-    lox = fmin(lox, ax[i]), loy = fmin(loy, ay[i]), loz = fmin(loz, az[i]);
-    hix = fmax(hix, ax[i]), hiy = fmax(hiy, ay[i]), hiz = fmax(hiz, az[i]);
-  }
   const realv qx = DPX_VLOAD(0, ax), qy = DPX_VLOAD(0, ay), qz = DPX_VLOAD(0, az);
   const maskv lane = DPX_LANE_INDEX;
-  const bool finite = isfinite(lox + loy + loz + hix + hiy + hiz);
-  const uint nt = finite ? min(ntile, nlevels) : 0u; /* a non-finite query: every level per query */
+  /* A non-finite query only ever joins its own lane's sums (its NaN or infinite terms stay in its lane, and
+   * an infinite coordinate reaches no cell). */
+  const uint nt = min(ntile, nlevels);
 #ifdef DPX_COARSE_DOUBLE
   const dtilev dqx = DPX_DTILE(qx), dqy = DPX_DTILE(qy), dqz = DPX_DTILE(qz);
   dtilev DF = (dtilev)f0, DGX = 0, DGY = 0, DGZ = 0;
@@ -507,6 +503,12 @@ __attribute__((always_inline)) inline void dpx_field_tile(const uint nq, __globa
     const uint n = cell_start[cs_off + (uint)(nx * ny * nz)];
     const real reach = sigma * (real)1.0009765625;
     const real span = DPX_TILE_SPAN * sigma;
+    __global const real* px = centres + 4 * (ulong)c_off;
+#ifdef DPX_COARSE_DOUBLE
+    const bool dlev = dlevel[l] != 0xffffffffu; /* a level summed in double: its block in dcentres */
+    __global const double* dc = dcentres + (dlev ? dlevel[l] : 0u);
+    __global const double* cxs = dc + 2;
+#endif
     int ty0, ty1, tz0, tz1, tx0, tx1;
     /* Groups of lanes: the whole tile, else its halves, else its quarters (consecutive queries lie close in
      * the batch's Morton order), each summed as a tile with the other lanes masked where its box fits in
@@ -531,15 +533,12 @@ __attribute__((always_inline)) inline void dpx_field_tile(const uint nq, __globa
           dpx_cell_range(gx0, gx1, reach, ox, inv_cx, nx, &tx0, &tx1);
           if (ty0 > ty1 || tz0 > tz1 || tx0 > tx1) break;
 #ifdef DPX_COARSE_DOUBLE
-          if (dlevel[l] != 0xffffffffu) {
-            __global const double* dc = dcentres + dlevel[l];
-            __global const double* cxs = dc + 2;
+          if (dlev) {
             DPX_TILE_SUM_D(DPX_DTILE_MASK(active), cxs, cxs + n, cxs + 2 * n, cxs + 3 * n, dc[0], dc[1], DF, DGX,
                            DGY, DGZ);
             break;
           }
 #endif
-          __global const real* px = centres + 4 * (ulong)c_off;
           DPX_TILE_SUM(gx0, gy0, gz0, gx1, gy1, gz1, active, px, px + n, px + 2 * n, px + 3 * n, sigma, inv_sigma, F,
                        GX, GY, GZ);
           break;
@@ -554,9 +553,7 @@ __attribute__((always_inline)) inline void dpx_field_tile(const uint nq, __globa
           if (ty0 > ty1 || tz0 > tz1 || tx0 > tx1) continue;
           const maskv at = lane == (maskv)i;
 #ifdef DPX_COARSE_DOUBLE
-          if (dlevel[l] != 0xffffffffu) {
-            __global const double* dc = dcentres + dlevel[l];
-            __global const double* cxs = dc + 2;
+          if (dlev) {
             const dmaskv dlane = DPX_DLANE_INDEX;
             double ds[4] = {0, 0, 0, 0};
             DPX_SEQ_SUM(double, dblv, dmaskv, long, DPX_DVLOAD, DPX_DVSTORE, DPX_DWIDTH, dlane, dpx_disum,
@@ -572,7 +569,6 @@ __attribute__((always_inline)) inline void dpx_field_tile(const uint nq, __globa
             continue;
           }
 #endif
-          __global const real* px = centres + 4 * (ulong)c_off;
           real fs[4] = {0, 0, 0, 0};
           DPX_SEQ_SUM(real, realv, maskv, int, DPX_VLOAD, DPX_VSTORE, FIELD_WIDTH, lane, dpx_isum, ax[i], ay[i], az[i],
                       px, px + n, px + 2 * n, px + 3 * n, sigma, inv_sigma, fs);

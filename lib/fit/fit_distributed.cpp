@@ -764,8 +764,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       }
       const NeighborIndex dataIndex(lp);
       if (overshootSpacing < 0.0) overshootSpacing = parts == 1 ? spacing : 0.0;  // one block: the winding number's, as fit()
-      double& checkSpacing = overshootSpacing;
-      if (!(checkSpacing > 0.0)) {
+      if (!(overshootSpacing > 0.0)) {
         // The median point area over all ranks' points (a stride sample of at most about 2^18 of them).
         const auto total = static_cast<std::int64_t>(rep.inputPoints);
         const std::int64_t stride = std::max<std::int64_t>(1, total >> 18);
@@ -777,10 +776,10 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
           }
         }
         const std::vector<double> gatheredAreas = comm.allgather(sample);
-        checkSpacing = detail::medianSpacing(
+        overshootSpacing = detail::medianSpacing(
             Eigen::Map<const Eigen::VectorXd>(gatheredAreas.data(), static_cast<Eigen::Index>(gatheredAreas.size())));
       }
-      const double d = options.overshootSpacings * checkSpacing;
+      const double d = options.overshootSpacings * overshootSpacing;
       std::vector<double> found;  // x, y, z, s·D of this rank's sites
       if (d > 0.0 && std::isfinite(d)) {
         if (!overshootCandidates) {
