@@ -206,6 +206,8 @@ void kuhnTets(const std::array<int, 3>& c, std::int32_t factor, std::vector<Fine
     const int a = 1 << p[0], b = 1 << p[1];
     const int corners[4] = {0, a, a | b, 7};
     FineTet t;
+    t.tag = 3;
+    t.depth = 0;
     for (int v = 0; v < 4; ++v) {
       for (int d = 0; d < 3; ++d) {
         t.x[static_cast<std::size_t>(v)][static_cast<std::size_t>(d)] =

@@ -11,6 +11,7 @@
 #include <functional>
 #include <vector>
 
+#include "core/default_init.hpp"
 #include "duplexfit/polygonize.hpp"
 #include "node_store.hpp"
 
@@ -19,10 +20,12 @@ namespace duplexfit::detail {
 /// A tetrahedron of the refined region, its corners on the lattice of the grid's nodes refined
 /// `factor` = 2^levels times (node (i, j, k) is lattice point factor·(i, j, k)). Bisection halves
 /// the edge x[0]–x[tag].
+/// Trivially default-constructible (no member initialisers), so that the region's array of millions of them
+/// is not zero-filled before it is copied into: every maker sets all fields (kuhnTets, bisect).
 struct FineTet {
-  std::array<std::array<std::int32_t, 3>, 4> x{};
-  std::uint8_t tag = 3;
-  std::uint8_t depth = 0;
+  std::array<std::array<std::int32_t, 3>, 4> x;
+  std::uint8_t tag;
+  std::uint8_t depth;
 };
 
 /// The cells in play and their leaf tetrahedra: the seed cells bisected 3·levels times each (their
@@ -33,7 +36,7 @@ struct RefinedRegion {
   std::int32_t factor = 1;
   std::vector<std::int64_t> cells;     ///< linear cell ids (i + nx·(j + ny·k)), ascending
   std::vector<std::size_t> offsets;    ///< tets of cells[c] are tets[offsets[c] .. offsets[c + 1])
-  std::vector<FineTet> tets;
+  ScratchVector<FineTet> tets;
   std::int64_t seeds = 0;              ///< seed and ring cells
   /// Field values already evaluated at some of its lattice points (packed keys on this region's lattice),
   /// which extractRefined takes instead of evaluating them again (refinedDeviatingCells fills them).

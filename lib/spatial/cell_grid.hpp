@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "duplexfit/types.hpp"
+#include "core/default_init.hpp"
 
 namespace duplexfit::detail {
 
@@ -81,7 +82,7 @@ class CellGrid {
   /// the hits are scratch); returns their number. Every candidate is written and the slot kept only for a
   /// hit, so the loop has no branch that depends on the distance (the level assembly's hot loop: about
   /// one candidate in six is a hit there, which a branch mispredicts).
-  std::size_t collect(const double* q, double radius, std::vector<Hit>& out, std::size_t at) const {
+  std::size_t collect(const double* q, double radius, ScratchVector<Hit>& out, std::size_t at) const {
     std::size_t candidates = 0;
     forRuns(q, radius, [&candidates](std::uint32_t b, std::uint32_t e) { candidates += e - b; });
     if (out.size() < at + candidates) out.resize(std::max(2 * out.size(), at + candidates + 4096));

@@ -32,7 +32,7 @@ int mismatches(const Points& points, const Points& queries, double cell, double 
     grid.within(q, radius, [&got](Index j, double d) { got.emplace_back(j, d); });
     // collect() (the assembly's branch-free form): the same hits in the same order, squared distances
     // whose square roots are within()'s distances.
-    std::vector<CellGrid::Hit> hits(3);  // written from slot 1 on: slot 0 must stay untouched
+    duplexfit::detail::ScratchVector<CellGrid::Hit> hits(3);  // written from slot 1 on: slot 0 must stay untouched
     hits[0] = CellGrid::Hit{-7, -1.0};
     const std::size_t n = grid.collect(q, radius, hits, 1);
     bool same = n == got.size() && hits[0].id == -7 && hits[0].squared == -1.0;
