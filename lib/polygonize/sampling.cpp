@@ -63,6 +63,8 @@ class BatchSampler {
     pending_.push_back({i, j, k});
     if (pending_.size() >= batch_) flush();
   }
+  /// The threads the block tests of the adaptive mode may use.
+  int threads() const noexcept { return threads_; }
   /// Switches the destination between the coarse lattice and the tiles (flushes first).
   void setCoarseTarget(bool coarse) {
     flush();
@@ -217,12 +219,15 @@ class Refiner {
       }
       for (bool coarseLevel = true; !current.empty(); coarseLevel = false) {
         next.clear();
-        for (const Block& b : current) refine(b, coarseLevel, next);
+        decide(current, false);
+        for (std::size_t i = 0; i < current.size(); ++i) apply(current[i], decisions_[i], coarseLevel, next);
         batch_.flush();
         if (!deferred_.empty()) {
-          // The last level's blocks that waited for their centre node (refineCells).
-          for (const Block& b : deferred_) refineCells(b, true);
-          deferred_.clear();
+          // The last level's blocks that waited for their centre node (cellDecision).
+          std::vector<Block> waited;
+          waited.swap(deferred_);
+          decide(waited, true);
+          for (std::size_t i = 0; i < waited.size(); ++i) apply(waited[i], decisions_[i], false, next);
           batch_.flush();
         }
         current.swap(next);
@@ -291,13 +296,71 @@ class Refiner {
     return true;
   }
 
-  void refine(const Block& b, bool coarseLevel, std::vector<Block>& next) {
-    int maxExtent = 0;
-    for (int a = 0; a < 3; ++a) maxExtent = std::max(maxExtent, b.hi[a] - b.lo[a]);
-    if (skippable(b)) return;
+  /// What a block's tests decided: skipped, halved, the cells of a last-level block to sample (a bit
+  /// each, in z, y, x order of the block's cells), or (a last-level block with every corner on one side)
+  /// its centre node first, the block tested again once it is known.
+  struct Decision {
+    enum Kind : std::uint8_t { Skip, Halve, Cells, Centre } kind = Skip;
+    std::uint8_t cells = 0;
+  };
+  /// Per-thread scratch of the cell tests.
+  struct Scratch {
+    std::vector<char> oneSide;
+    std::vector<std::array<double, 9>> rho2;
+  };
+
+  /// decisions_[i] for blocks[i]: the tests only read node values sampled before (the corners, and the
+  /// centres of `withCentre` blocks), so they run on the sampler's threads, and their requests are made
+  /// afterwards in block order (the same requests and batches as one thread would make).
+  void decide(const std::vector<Block>& blocks, bool withCentre) {
+    decisions_.assign(blocks.size(), Decision{});
+    const auto n = static_cast<long long>(blocks.size());
+#pragma omp parallel num_threads(std::max(1, batch_.threads())) if (n > 256)
+    {
+      Scratch scratch;
+#pragma omp for schedule(dynamic, 256)
+      for (long long i = 0; i < n; ++i) {
+        const Block& b = blocks[static_cast<std::size_t>(i)];
+        Decision& d = decisions_[static_cast<std::size_t>(i)];
+        if (withCentre) {
+          d = cellDecision(b, true, scratch);
+          continue;
+        }
+        int maxExtent = 0;
+        for (int a = 0; a < 3; ++a) maxExtent = std::max(maxExtent, b.hi[a] - b.lo[a]);
+        if (skippable(b)) {
+          d.kind = Decision::Skip;
+        } else if (maxExtent <= 2) {
+          d = cellDecision(b, false, scratch);
+        } else {
+          d.kind = Decision::Halve;
+        }
+      }
+    }
+  }
+
+  /// The requests of block b's decision (and its children into `next`).
+  void apply(const Block& b, const Decision& d, bool coarseLevel, std::vector<Block>& next) {
+    if (d.kind == Decision::Skip) return;
     if (coarseLevel) ++stats_.refinedBlocks;
-    if (maxExtent <= 2) {
-      refineCells(b, false);
+    if (d.kind == Decision::Centre) {
+      batch_.request(b.lo[0] + 1, b.lo[1] + 1, b.lo[2] + 1);
+      deferred_.push_back(b);
+      return;
+    }
+    if (d.kind == Decision::Cells) {
+      int bit = 0;
+      for (int k = b.lo[2]; k < b.hi[2]; ++k) {
+        for (int j = b.lo[1]; j < b.hi[1]; ++j) {
+          for (int i = b.lo[0]; i < b.hi[0]; ++i, ++bit) {
+            if (((d.cells >> bit) & 1) == 0) continue;
+            for (int corner = 0; corner < 8; ++corner) {
+              batch_.request(i + (corner & 1), j + ((corner >> 1) & 1), k + ((corner >> 2) & 1));
+            }
+            store_.markCell(i, j, k);
+          }
+        }
+      }
       return;
     }
     // Halve every axis with at least 2 cells; sample the new lattice nodes; test the children at
@@ -329,17 +392,17 @@ class Refiner {
   /// nodes is sampled, against the balls of the block's 8 sampled corners (radius |f − c| / L;
   /// f ≠ c inside each). A connected cell covered by such balls holds no point with f = c, so its
   /// corners all lie on one side of c and it has no crossing. Only the cells not covered for some
-  /// iso value get their nodes sampled and are contoured.
+  /// iso value get their nodes sampled and are contoured (the Cells decision lists them).
   ///
   /// A block of 2 × 2 × 2 cells whose corners lie on one side of every iso value but whose balls
-  /// leave a cell uncovered first has its centre node sampled (`withCentre` false: requested, the
-  /// block deferred to a second pass after the batch). The centre is a corner of all 8 cells, so it is
+  /// leave a cell uncovered first has its centre node sampled (`withCentre` false: the Centre decision,
+  /// the block deferred to a second pass after the batch). The centre is a corner of all 8 cells, so it is
   /// never wasted where a cell is sampled, and its ball covers a cell together with the opposite
   /// block corner's wherever both lie about L times the cell's edge from the level: the band of
   /// sampled cells on either side of a surface narrows (fandisk_550k: about 3.9 nodes evaluated per
   /// node of a crossed cell before). A centre on the other side of an iso value makes the block a
   /// crossing one for it: every cell is then sampled, as for a corner there.
-  void refineCells(const Block& b, bool withCentre) {
+  Decision cellDecision(const Block& b, bool withCentre, Scratch& scratch) const {
     double f[8];
     for (int c = 0; c < 8; ++c) {
       f[c] = static_cast<double>(store_.value(
@@ -352,8 +415,8 @@ class Refiner {
     // Per iso value: whether all corners (and the centre, when known) lie strictly on one side (with a
     // sign change every cell is sampled, as the coarser levels do, so that a field steeper than the
     // bound still gives the continuation surfaces to follow), and the squared ball radii.
-    std::vector<char>& oneSide = oneSide_;
-    std::vector<std::array<double, 9>>& rho2 = rho2_;
+    std::vector<char>& oneSide = scratch.oneSide;
+    std::vector<std::array<double, 9>>& rho2 = scratch.rho2;
     oneSide.assign(isos_.size(), 0);
     rho2.resize(isos_.size());
     bool allOneSide = true;
@@ -396,6 +459,8 @@ class Refiner {
       }
       return all;
     };
+    Decision d;
+    d.kind = Decision::Cells;
     if (!withCentre && full && allOneSide) {
       bool any = false;
       for (int k = b.lo[2]; k < b.hi[2] && !any; ++k) {
@@ -403,22 +468,18 @@ class Refiner {
           for (int i = b.lo[0]; i < b.hi[0] && !any; ++i) any = !covered(i, j, k);
         }
       }
-      if (!any) return;
-      batch_.request(mid[0], mid[1], mid[2]);
-      deferred_.push_back(b);
-      return;
+      if (any) d.kind = Decision::Centre;
+      return d;
     }
+    int bit = 0;
     for (int k = b.lo[2]; k < b.hi[2]; ++k) {
       for (int j = b.lo[1]; j < b.hi[1]; ++j) {
-        for (int i = b.lo[0]; i < b.hi[0]; ++i) {
-          if (covered(i, j, k)) continue;
-          for (int corner = 0; corner < 8; ++corner) {
-            batch_.request(i + (corner & 1), j + ((corner >> 1) & 1), k + ((corner >> 2) & 1));
-          }
-          store_.markCell(i, j, k);
+        for (int i = b.lo[0]; i < b.hi[0]; ++i, ++bit) {
+          if (!covered(i, j, k)) d.cells = static_cast<std::uint8_t>(d.cells | (1U << bit));
         }
       }
     }
+    return d;
   }
 
   /// Subdivisions tried when covering a cell by balls (each halves the box on every axis).
@@ -464,8 +525,7 @@ class Refiner {
   const std::vector<double>& isos_;
   double lipschitz_;
   ZRange range_;
-  std::vector<char> oneSide_;                 ///< refineCells scratch
-  std::vector<std::array<double, 9>> rho2_;  ///< refineCells scratch
+  std::vector<Decision> decisions_;          ///< decide's results, a block each
   std::vector<Block> deferred_;              ///< last-level blocks waiting for their centre node
   NodeStore& store_;
   BatchSampler& batch_;
