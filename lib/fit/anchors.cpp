@@ -169,7 +169,6 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
   }
   const int kAgree = std::max(1, std::min<int>(o.agreeNeighbors, static_cast<int>(inputPoints.rows())));
   const int kNear = std::max(kAgree, std::min<int>(kDiskNeighbours, static_cast<int>(inputPoints.rows())));
-  const NeighborLists near = inputIndex.knnSearch(bq, kNear);
   // The winding number decides only by its thresholds (ambiguity and 1 − ambiguity): a quick pass at
   // β = 2 (half the time of the tree's β = 3), then the tree's own β wherever the quick value lies within
   // kQuickMargin of a threshold. Three spacings or more from the samples, where every anchor lies, the
@@ -188,8 +187,26 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
     const Eigen::VectorXd exactEnough = winding.evaluate(aq);
     for (std::size_t r = 0; r < again.size(); ++r) w[again[r]] = exactEnough[static_cast<Eigen::Index>(r)];
   }
+  // The nearest samples (votes and disk-soup distances) only for the candidates the tests so far keep: not
+  // crowded, not ambiguous and, outside, within outsideMaxDistance.
+  std::vector<char> farOut(band.size(), 0);
+  std::vector<std::size_t> kept;
+  for (std::size_t r = 0; r < band.size(); ++r) {
+    const double wr = w[static_cast<Eigen::Index>(r)];
+    if (clear[r] == 0 || (wr > o.ambiguity && wr < 1.0 - o.ambiguity)) continue;
+    if (wr < 0.5 && o.outsideMaxDistance > 0.0 && bandDistance[r] > o.outsideMaxDistance) {
+      farOut[r] = 1;
+      continue;
+    }
+    kept.push_back(r);
+  }
+  Points kq(static_cast<Eigen::Index>(kept.size()), 3);
+  for (std::size_t i = 0; i < kept.size(); ++i) kq.row(static_cast<Eigen::Index>(i)) = bq.row(static_cast<Eigen::Index>(kept[i]));
+  const NeighborLists near = inputIndex.knnSearch(kq, kNear);
   const Eigen::VectorXd disk =
-      diskSoupDistance(bq, inputPoints, inwardNormals, areas, near, std::min<int>(kNear, kDiskNeighbours));
+      diskSoupDistance(kq, inputPoints, inwardNormals, areas, near, std::min<int>(kNear, kDiskNeighbours));
+  std::vector<std::size_t> keptAt(band.size(), 0);  // band row -> its row in kq
+  for (std::size_t i = 0; i < kept.size(); ++i) keptAt[kept[i]] = i;
 
   std::vector<Eigen::Vector3d> pos;
   std::vector<double> target;
@@ -204,11 +221,16 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
       ++out.ambiguous;
       continue;
     }
+    if (farOut[r] != 0) {
+      ++out.farOutside;
+      continue;
+    }
     const bool inside = wr >= 0.5;
+    const std::size_t kr = keptAt[r];
     // The nearest samples' tangent planes: (c − p)·ν > 0 puts c on the inner side of p.
     int agree = 0, votes = 0;
-    const auto votesEnd = std::min(near.offsets[r + 1], near.offsets[r] + kAgree);
-    for (auto e = near.offsets[r]; e < votesEnd; ++e) {
+    const auto votesEnd = std::min(near.offsets[kr + 1], near.offsets[kr] + kAgree);
+    for (auto e = near.offsets[kr]; e < votesEnd; ++e) {
       const Index j = near.indices[static_cast<std::size_t>(e)];
       if (inwardNormals.row(j).squaredNorm() == 0.0) continue;
       const double s = (bq.row(static_cast<Eigen::Index>(r)) - inputPoints.row(j)).dot(inwardNormals.row(j));
@@ -229,7 +251,7 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
     }
     (inside ? out.inside : out.outside) += 1;
     pos.push_back(bq.row(static_cast<Eigen::Index>(r)).transpose());
-    target.push_back((inside ? 1.0 : -1.0) * std::min(disk[static_cast<Eigen::Index>(r)], o.clamp));
+    target.push_back((inside ? 1.0 : -1.0) * std::min(disk[static_cast<Eigen::Index>(kr)], o.clamp));
     posKey.push_back(candKey[static_cast<std::size_t>(band[r])]);
   }
   // The anchors in the Morton order of their grid cells (integer indices, so no rounding can reorder
@@ -251,14 +273,26 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
 }
 
 void addLevelAnchors(LevelConstraints& c, double sigma, double spacing, const std::vector<double>& deltas,
-                     const Eigen::AlignedBox3d& anchorBox, int k, const Points& cloud, const Points& inwardNormals,
-                     const WindingNumber& winding, const NeighborIndex& index, LevelReport& report, double scale) {
+                     const Eigen::AlignedBox3d& anchorBox, int k, bool lastAnchored, const Points& cloud,
+                     const Points& inwardNormals, const WindingNumber& winding, const NeighborIndex& index,
+                     LevelReport& report, double scale) {
   AnchorOptions ao;
   ao.spacing = sigma / 2.0;
   // Lower bound 3σ_k/4: at σ_k/2, anchors next to the offset band left bumps of 4.5% of δ on
   // notched_cube_24k's inner offset (0.9% at 3σ_k/4); at σ_k the hole of thin_torus_20k refills.
   ao.minDistance = std::max(0.75 * sigma, 3.0 * spacing);
   ao.maxDistance = k == 1 ? 0.0 : 2.0 * sigma;
+  // At the finest anchored level, outside the solid, only as far as the level's own bumps reach (its surface
+  // and off-surface centres, σ_k/10 out, and outward offsets' centres: σ_k beyond them) and at least to
+  // 1.5σ_k = 0.75σ_{k−1}, where the coarser level's outside anchors begin: the anchors beyond only repeat
+  // what level k − 1 set, and they were a fifth of fandisk_550k's level-8 centres, examined by every
+  // evaluation near the surface (docs/method.md, "Sign of empty space").
+  if (lastAnchored && k > 1) {
+    double outward = 0.1 * sigma;
+    for (const double d : deltas) outward = std::max(outward, -d);
+    const double reach = std::max(1.5 * sigma, sigma + outward);
+    if (reach < ao.maxDistance && reach > ao.minDistance) ao.outsideMaxDistance = reach;
+  }
   ao.centreClearance = sigma / 4.0;
   ao.offsets = deltas;
   ao.offsetClearance = sigma / 2.0;
@@ -279,7 +313,7 @@ void addLevelAnchors(LevelConstraints& c, double sigma, double spacing, const st
   report.anchorSpacing = usedSpacing / scale;
   report.anchorsInside = an.inside;
   report.anchorsOutside = an.outside;
-  report.anchorsSkipped = an.ambiguous + an.disagreeing + an.crowded + an.nearOffset;
+  report.anchorsSkipped = an.ambiguous + an.disagreeing + an.crowded + an.nearOffset + an.farOutside;
   const Eigen::Index base = c.centres.rows(), extra = an.positions.rows();
   c.centres.conservativeResize(base + extra, 3);
   c.centres.bottomRows(extra) = an.positions;

@@ -24,6 +24,8 @@ struct AnchorOptions {
   double spacing = 0.0;      ///< grid spacing of the candidates (normalised units)
   double minDistance = 0.0;  ///< a candidate must be at least this far from every input point
   double maxDistance = 0.0;  ///< ... and at most this far (<= 0: no upper limit)
+  /// > 0: outside the solid (winding number below 1/2), at most this far (a lower upper end there).
+  double outsideMaxDistance = 0.0;
   double centreClearance = 0.0;  ///< ... and this far from every other centre of the level
   double clamp = 1.0;        ///< |target| = min(disk-soup distance, clamp)
   double ambiguity = 0.25;   ///< skip when |w − 0.5| < 0.5 − ambiguity (w in (ambiguity, 1 − ambiguity))
@@ -47,6 +49,7 @@ struct Anchors {
   std::size_t disagreeing = 0; ///< the nearest samples unanimously contradict the winding number
   std::size_t crowded = 0;     ///< too close to another centre of the level
   std::size_t nearOffset = 0;  ///< within offsetClearance of an offset level
+  std::size_t farOutside = 0;  ///< outside, beyond outsideMaxDistance
   bool gridTooLarge = false;
   bool tooMany = false;        ///< more than maxCandidates cells near the samples (nothing else computed)
 };
@@ -67,7 +70,8 @@ struct LevelConstraints;
 /// units) in `report`. At most about as many anchors as the level has centres: the grid spacing doubles
 /// while there would be more.
 void addLevelAnchors(LevelConstraints& c, double sigma, double spacing, const std::vector<double>& deltas,
-                     const Eigen::AlignedBox3d& anchorBox, int k, const Points& cloud, const Points& inwardNormals,
-                     const WindingNumber& winding, const NeighborIndex& index, LevelReport& report, double scale);
+                     const Eigen::AlignedBox3d& anchorBox, int k, bool lastAnchored, const Points& cloud,
+                     const Points& inwardNormals, const WindingNumber& winding, const NeighborIndex& index,
+                     LevelReport& report, double scale);
 
 }  // namespace duplexfit::detail

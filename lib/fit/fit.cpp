@@ -555,7 +555,8 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     lr.offsetMedial = c.offsetMedial;
     lr.offSurfaceMedial = c.offSurfaceMedial;
     if (k <= lastAnchorLevel) {
-      detail::addLevelAnchors(c, sigma, spacing, deltas, anchorBox, k, u, nu, *winding, *inputIndex, lr, norm.scale);
+      detail::addLevelAnchors(c, sigma, spacing, deltas, anchorBox, k, k == lastAnchorLevel, u, nu, *winding, *inputIndex, lr,
+                              norm.scale);
     }
     lr.surfacePoints = c.surface;
     lr.offsetCandidates = c.offsetCandidates;

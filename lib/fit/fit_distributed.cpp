@@ -558,8 +558,8 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       }
       const Eigen::Index systemCentres = c.centres.rows();
       if (k <= lastAnchorLevel && (gathered || parts == 1)) {
-        detail::addLevelAnchors(c, sigma, spacing, deltas, anchorBox, k, cloud, cloudNormals, *winding, *cloudIndex, lr,
-                                norm.scale);
+        detail::addLevelAnchors(c, sigma, spacing, deltas, anchorBox, k, k == lastAnchorLevel, cloud, cloudNormals, *winding,
+                                *cloudIndex, lr, norm.scale);
       }
       if (k == levels && overshootAt.rows() > 0) {
         // The overshoot sites this unit's system holds: all of them on a gathered level, else those it owns
