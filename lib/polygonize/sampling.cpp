@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <exception>
 #include <limits>
 #include <sstream>
 #include <string>
@@ -315,6 +316,7 @@ class Refiner {
   void decide(const std::vector<Block>& blocks, bool withCentre) {
     decisions_.assign(blocks.size(), Decision{});
     const auto n = static_cast<long long>(blocks.size());
+    std::exception_ptr error;  // an allocation of the scratch failing, caught where it happened
 #pragma omp parallel num_threads(std::max(1, batch_.threads())) if (n > 256)
     {
       Scratch scratch;
@@ -322,21 +324,25 @@ class Refiner {
       for (long long i = 0; i < n; ++i) {
         const Block& b = blocks[static_cast<std::size_t>(i)];
         Decision& d = decisions_[static_cast<std::size_t>(i)];
-        if (withCentre) {
-          d = cellDecision(b, true, scratch);
-          continue;
-        }
-        int maxExtent = 0;
-        for (int a = 0; a < 3; ++a) maxExtent = std::max(maxExtent, b.hi[a] - b.lo[a]);
-        if (skippable(b)) {
-          d.kind = Decision::Skip;
-        } else if (maxExtent <= 2) {
-          d = cellDecision(b, false, scratch);
-        } else {
-          d.kind = Decision::Halve;
+        try {
+          int maxExtent = 0;
+          for (int a = 0; a < 3; ++a) maxExtent = std::max(maxExtent, b.hi[a] - b.lo[a]);
+          if (withCentre) {
+            d = cellDecision(b, true, scratch);
+          } else if (skippable(b)) {
+            d.kind = Decision::Skip;
+          } else if (maxExtent <= 2) {
+            d = cellDecision(b, false, scratch);
+          } else {
+            d.kind = Decision::Halve;
+          }
+        } catch (...) {
+#pragma omp critical(duplexfit_sampling_error)
+          if (!error) error = std::current_exception();
         }
       }
     }
+    if (error) std::rethrow_exception(error);
   }
 
   /// The requests of block b's decision (and its children into `next`).
