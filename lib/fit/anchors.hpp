@@ -68,7 +68,8 @@ struct LevelConstraints;
 /// Level k's sign anchors as fit() adds them (σ = σ_k, `spacing` the input's median spacing, normalised
 /// units), appended to c's centres and targets (sources −1), with the counts and the spacing (÷ scale: input
 /// units) in `report`. At most about as many anchors as the level has centres: the grid spacing doubles
-/// while there would be more.
+/// while there would be more. `lastAnchored`: k is the finest level given anchors, whose outside band ends
+/// at the level's own reach (AnchorOptions::outsideMaxDistance; those beyond count as skipped).
 void addLevelAnchors(LevelConstraints& c, double sigma, double spacing, const std::vector<double>& deltas,
                      const Eigen::AlignedBox3d& anchorBox, int k, bool lastAnchored, const Points& cloud,
                      const Points& inwardNormals, const WindingNumber& winding, const NeighborIndex& index,

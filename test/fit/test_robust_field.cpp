@@ -276,6 +276,50 @@ TEST_SUITE("fit") {
     }
   }
 
+  TEST_CASE("sign anchors: an outside upper end drops the outside anchors beyond it and leaves every other anchor as it was") {
+    // The finest anchored level's outside band ends at the level's reach (docs/method.md, "Sign of empty
+    // space"): the same torus and grid with and without that end.
+    Points normals;
+    const Points points = testing::sampledTorus(3000, 0.4, 0.1, &normals);
+    const Points inward = -normals;
+    const WindingNumber winding(points, normals);
+    const NeighborIndex index(points);
+    Eigen::AlignedBox3d box;
+    for (Eigen::Index i = 0; i < points.rows(); ++i) box.extend(points.row(i).transpose());
+    box.extend(box.min() - Eigen::Vector3d::Constant(0.15));
+    box.extend(box.max() + Eigen::Vector3d::Constant(0.15));
+    const double sigma = 0.1;
+    detail::AnchorOptions o;
+    o.spacing = sigma / 2.0;
+    o.minDistance = 0.75 * sigma;
+    o.maxDistance = 2.0 * sigma;
+    const detail::Anchors all = detail::levelAnchors(box, points, inward, winding.areas(), index, winding, points, o);
+    o.outsideMaxDistance = 1.5 * sigma;
+    const detail::Anchors near = detail::levelAnchors(box, points, inward, winding.areas(), index, winding, points, o);
+    const auto nearest = [&points](const Eigen::RowVector3d& c) {
+      return std::sqrt((points.rowwise() - c).rowwise().squaredNorm().minCoeff());
+    };
+    // The anchors of `near` are those of `all` without the far outside ones, in the same order and with the
+    // same targets (inside: target > 0).
+    std::size_t next = 0, beyond = 0;
+    for (Eigen::Index r = 0; r < all.positions.rows(); ++r) {
+      const bool far = all.targets[r] < 0.0 && nearest(all.positions.row(r)) > o.outsideMaxDistance;
+      beyond += far ? 1 : 0;
+      if (far) continue;
+      REQUIRE(next < static_cast<std::size_t>(near.positions.rows()));
+      const auto row = static_cast<Eigen::Index>(next++);
+      CHECK(near.positions.row(row) == all.positions.row(r));
+      CHECK(near.targets[row] == all.targets[r]);
+    }
+    CHECK(next == static_cast<std::size_t>(near.positions.rows()));
+    CHECK(beyond > 50);  // the end drops something here
+    CHECK(near.farOutside == beyond);
+    CHECK(near.inside == all.inside);
+    CHECK(near.outside + near.farOutside == all.outside);
+    CHECK(near.inside > 0);
+    CHECK(near.outside > 0);
+  }
+
   TEST_CASE("robust field: a solid with a handle gets no blob inside the loop") {
 #ifdef DUPLEXFIT_SANITIZED
     DUPLEXFIT_SKIP("in the sanitizer build (the thin-torus case covers the same code there; Release runs it)");
