@@ -132,6 +132,26 @@ std::size_t anchorCount(const FitReport& r) {
   return n;
 }
 
+/// A sampled torus (R 0.4, r 0.1) with what levelAnchors takes: inward normals, the winding number, the
+/// points' index and their box grown by 0.15.
+struct TorusForAnchors {
+  Points normals;
+  Points points = testing::sampledTorus(3000, 0.4, 0.1, &normals);
+  Points inward = -normals;
+  WindingNumber winding{points, normals};
+  NeighborIndex index{points};
+  Eigen::AlignedBox3d box = [this] {
+    Eigen::AlignedBox3d b;
+    for (Eigen::Index i = 0; i < points.rows(); ++i) b.extend(points.row(i).transpose());
+    b.extend(b.min() - Eigen::Vector3d::Constant(0.15));
+    b.extend(b.max() + Eigen::Vector3d::Constant(0.15));
+    return b;
+  }();
+  detail::Anchors anchors(const detail::AnchorOptions& o) const {
+    return detail::levelAnchors(box, points, inward, winding.areas(), index, winding, points, o);
+  }
+};
+
 }  // namespace
 
 TEST_SUITE("fit") {
@@ -237,22 +257,16 @@ TEST_SUITE("fit") {
     // levelAnchors queries only the rings of cells that can reach the band (by the ring's distance bounds);
     // the band it finds must be exactly the brute-force one, at the σ/2 spacing (the occupied cells skipped)
     // and at the doubled spacing (nothing skipped by the lower bound).
-    Points normals;
-    const Points points = testing::sampledTorus(3000, 0.4, 0.1, &normals);
-    const Points inward = -normals;
-    const WindingNumber winding(points, normals);
-    const NeighborIndex index(points);
-    Eigen::AlignedBox3d box;
-    for (Eigen::Index i = 0; i < points.rows(); ++i) box.extend(points.row(i).transpose());
-    box.extend(box.min() - Eigen::Vector3d::Constant(0.15));
-    box.extend(box.max() + Eigen::Vector3d::Constant(0.15));
+    const TorusForAnchors t;
+    const Points& points = t.points;
+    const Eigen::AlignedBox3d& box = t.box;
     const double sigma = 0.1;
     for (const double spacing : {sigma / 2.0, sigma}) {
       detail::AnchorOptions o;
       o.spacing = spacing;
       o.minDistance = 0.75 * sigma;
       o.maxDistance = 2.0 * sigma;
-      const detail::Anchors an = detail::levelAnchors(box, points, inward, winding.areas(), index, winding, points, o);
+      const detail::Anchors an = t.anchors(o);
       // The same grid, every cell's nearest input point by brute force.
       Eigen::Array3i n;
       for (int a = 0; a < 3; ++a) n[a] = std::max(1, static_cast<int>(std::ceil(box.sizes()[a] / spacing)));
@@ -279,23 +293,16 @@ TEST_SUITE("fit") {
   TEST_CASE("sign anchors: an outside upper end drops the outside anchors beyond it and leaves every other anchor as it was") {
     // The finest anchored level's outside band ends at the level's reach (docs/method.md, "Sign of empty
     // space"): the same torus and grid with and without that end.
-    Points normals;
-    const Points points = testing::sampledTorus(3000, 0.4, 0.1, &normals);
-    const Points inward = -normals;
-    const WindingNumber winding(points, normals);
-    const NeighborIndex index(points);
-    Eigen::AlignedBox3d box;
-    for (Eigen::Index i = 0; i < points.rows(); ++i) box.extend(points.row(i).transpose());
-    box.extend(box.min() - Eigen::Vector3d::Constant(0.15));
-    box.extend(box.max() + Eigen::Vector3d::Constant(0.15));
+    const TorusForAnchors t;
+    const Points& points = t.points;
     const double sigma = 0.1;
     detail::AnchorOptions o;
     o.spacing = sigma / 2.0;
     o.minDistance = 0.75 * sigma;
     o.maxDistance = 2.0 * sigma;
-    const detail::Anchors all = detail::levelAnchors(box, points, inward, winding.areas(), index, winding, points, o);
+    const detail::Anchors all = t.anchors(o);
     o.outsideMaxDistance = 1.5 * sigma;
-    const detail::Anchors near = detail::levelAnchors(box, points, inward, winding.areas(), index, winding, points, o);
+    const detail::Anchors near = t.anchors(o);
     const auto nearest = [&points](const Eigen::RowVector3d& c) {
       return std::sqrt((points.rowwise() - c).rowwise().squaredNorm().minCoeff());
     };
