@@ -14,6 +14,7 @@
 #include <iomanip>
 #include <iterator>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <system_error>
 #include <thread>
@@ -407,7 +408,9 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
   std::vector<std::array<int, 3>> cells, replaced;  // this round's cells; those the mesh has refined already
   std::vector<std::array<int, 3>> deep;             // of them, the cells refined one level more
   bool kept = false;
-  const MeshTopology first = analyzeTopology(mesh);
+  // The mesh's topology before any round, taken once a round will run (a pass refused for its cells, as on
+  // the wheels' meshes, needs none: 0.1 s a million faces).
+  std::optional<MeshTopology> first;
   for (int round = 0; round < kNeckRounds; ++round) {
     const LevelSetDeviation& d = finish.deviation;
     if (!finish.deviationMeasured || d.aboveLimitAt.empty()) break;
@@ -438,7 +441,6 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
     std::vector<std::array<int, 3>> wider = cellsAround(d.nearLimitAt, kNeckRadius, cells);
     const bool nearOnes = wider.size() <= surface.neckPassMaxCells;
     cells = nearOnes ? std::move(wider) : cellsAround(d.aboveLimitAt, kNeckRadius, cells);
-    deep = cellsAround(nearOnes ? d.nearLimitAt : d.aboveLimitAt, kDeepRadius, deep);
     if (cells.size() > surface.neckPassMaxCells) {
       std::ostringstream line;
       line << name << ": neck pass " << round + 1 << " not run: the points beyond the limit span " << cells.size()
@@ -451,6 +453,8 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
       }
       break;
     }
+    deep = cellsAround(nearOnes ? d.nearLimitAt : d.aboveLimitAt, kDeepRadius, deep);
+    if (!first) first = analyzeTopology(mesh);
     PolygonizeOptions po = surfacePolygonizeOptions(field, surface);
     po.refineDeeperCells = deep;
     // First the local replacement: the level set extracted in boxes around the cells only, its faces within
@@ -464,7 +468,7 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
       std::vector<std::array<int, 3>> added;
       std::set_difference(cells.begin(), cells.end(), replaced.begin(), replaced.end(), std::back_inserter(added));
       std::string refused = "no cells beyond the earlier rounds'";
-      if (!added.empty() && localNeckPass(evaluator, field, grid, iso, surface, minComponent, deep, cells, first,
+      if (!added.empty() && localNeckPass(evaluator, field, grid, iso, surface, minComponent, deep, cells, *first,
                                          round + 1 == kNeckRounds, po, mesh, finish, r, refused,
                                          name + ": neck pass " + std::to_string(round + 1), progress)) {
         kept = true;
@@ -500,7 +504,7 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
     const MeshTopology after = analyzeTopology(again.meshes[0]);
     const double was = finish.deviation.relativeMax, now = again.reports[0].deviation.relativeMax;
     const bool better = again.reports[0].deviationMeasured && now < was &&
-                        ((after.watertight() && after.manifold()) || !(first.watertight() && first.manifold()));
+                        ((after.watertight() && after.manifold()) || !(first->watertight() && first->manifold()));
     std::ostringstream line;
     line << std::setprecision(4) << name << ": neck pass " << round + 1 << ", " << deep.size()
          << " cells refined one level more: deviation " << 100.0 * was << "% -> " << 100.0 * now << "% of the largest side, "
