@@ -188,16 +188,16 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
     for (std::size_t r = 0; r < again.size(); ++r) w[again[r]] = exactEnough[static_cast<Eigen::Index>(r)];
   }
   // The nearest samples (votes and disk-soup distances) only for the candidates the tests so far keep: not
-  // crowded, not ambiguous and, outside, within outsideMaxDistance.
-  std::vector<char> farOut(band.size(), 0);
+  // crowded, not ambiguous and, outside, within outsideMaxDistance. keptAt: a band row's row in kq (none:
+  // dropped by one of those tests).
+  constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
+  std::vector<std::size_t> keptAt(band.size(), kNone);
   std::vector<std::size_t> kept;
   for (std::size_t r = 0; r < band.size(); ++r) {
     const double wr = w[static_cast<Eigen::Index>(r)];
     if (clear[r] == 0 || (wr > o.ambiguity && wr < 1.0 - o.ambiguity)) continue;
-    if (wr < 0.5 && o.outsideMaxDistance > 0.0 && bandDistance[r] > o.outsideMaxDistance) {
-      farOut[r] = 1;
-      continue;
-    }
+    if (wr < 0.5 && o.outsideMaxDistance > 0.0 && bandDistance[r] > o.outsideMaxDistance) continue;
+    keptAt[r] = kept.size();
     kept.push_back(r);
   }
   Points kq(static_cast<Eigen::Index>(kept.size()), 3);
@@ -205,8 +205,6 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
   const NeighborLists near = inputIndex.knnSearch(kq, kNear);
   const Eigen::VectorXd disk =
       diskSoupDistance(kq, inputPoints, inwardNormals, areas, near, std::min<int>(kNear, kDiskNeighbours));
-  std::vector<std::size_t> keptAt(band.size(), 0);  // band row -> its row in kq
-  for (std::size_t i = 0; i < kept.size(); ++i) keptAt[kept[i]] = i;
 
   std::vector<Eigen::Vector3d> pos;
   std::vector<double> target;
@@ -221,12 +219,12 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
       ++out.ambiguous;
       continue;
     }
-    if (farOut[r] != 0) {
+    const std::size_t kr = keptAt[r];
+    if (kr == kNone) {  // neither crowded nor ambiguous: outside, beyond outsideMaxDistance
       ++out.farOutside;
       continue;
     }
     const bool inside = wr >= 0.5;
-    const std::size_t kr = keptAt[r];
     // The nearest samples' tangent planes: (c − p)·ν > 0 puts c on the inner side of p.
     int agree = 0, votes = 0;
     const auto votesEnd = std::min(near.offsets[kr + 1], near.offsets[kr] + kAgree);
@@ -282,13 +280,13 @@ void addLevelAnchors(LevelConstraints& c, double sigma, double spacing, const st
   // notched_cube_24k's inner offset (0.9% at 3σ_k/4); at σ_k the hole of thin_torus_20k refills.
   ao.minDistance = std::max(0.75 * sigma, 3.0 * spacing);
   ao.maxDistance = k == 1 ? 0.0 : 2.0 * sigma;
-  // At the finest anchored level, outside the solid, only as far as the level's own bumps reach (its surface
-  // and off-surface centres, σ_k/10 out, and outward offsets' centres: σ_k beyond them) and at least to
-  // 1.5σ_k = 0.75σ_{k−1}, where the coarser level's outside anchors begin: the anchors beyond only repeat
+  // At the finest anchored level, outside the solid, only as far as the level's own bumps reach and at least
+  // to 1.5σ_k = 0.75σ_{k−1}, where the coarser level's outside anchors begin: the anchors beyond only repeat
   // what level k − 1 set, and they were a fifth of fandisk_550k's level-8 centres, examined by every
-  // evaluation near the surface (docs/method.md, "Sign of empty space").
+  // evaluation near the surface (docs/method.md, "Sign of empty space"). The bumps of the surface and
+  // off-surface centres (σ_k/10 out) end within 1.5σ_k; an outward offset's, σ_k beyond |δ|.
   if (lastAnchored && k > 1) {
-    double outward = 0.1 * sigma;
+    double outward = 0.0;
     for (const double d : deltas) outward = std::max(outward, -d);
     const double reach = std::max(1.5 * sigma, sigma + outward);
     if (reach < ao.maxDistance && reach > ao.minDistance) ao.outsideMaxDistance = reach;
