@@ -173,18 +173,30 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
   // β = 2 (half the time of the tree's β = 3), then the tree's own β wherever the quick value lies within
   // kQuickMargin of a threshold. Three spacings or more from the samples, where every anchor lies, the
   // quick pass differs from β = 3 by at most 0.06 on the shared clouds measured (test_winding asserts
-  // ≤ 0.1), so every decision is β = 3's.
-  Eigen::VectorXd w = winding.evaluate(bq, kQuickBeta);
+  // ≤ 0.1), so every decision is β = 3's. Only the candidates the crowding test keeps are asked (a crowded
+  // one is dropped whatever its side; w stays 1/2 there, unread).
+  Eigen::VectorXd w = Eigen::VectorXd::Constant(static_cast<Eigen::Index>(band.size()), 0.5);
   {
+    std::vector<Eigen::Index> open;
+    open.reserve(band.size());
+    for (std::size_t r = 0; r < band.size(); ++r) {
+      if (clear[r] != 0) open.push_back(static_cast<Eigen::Index>(r));
+    }
+    const auto rowsOf = [&bq](const std::vector<Eigen::Index>& rows) {
+      Points sub(static_cast<Eigen::Index>(rows.size()), 3);
+      for (std::size_t r = 0; r < rows.size(); ++r) sub.row(static_cast<Eigen::Index>(r)) = bq.row(rows[r]);
+      return sub;
+    };
+    const Eigen::VectorXd quick = winding.evaluate(rowsOf(open), kQuickBeta);
     std::vector<Eigen::Index> again;
-    for (Eigen::Index r = 0; r < w.size(); ++r) {
-      if (std::abs(w[r] - o.ambiguity) < kQuickMargin || std::abs(w[r] - (1.0 - o.ambiguity)) < kQuickMargin) {
-        again.push_back(r);
+    for (std::size_t i = 0; i < open.size(); ++i) {
+      const double v = quick[static_cast<Eigen::Index>(i)];
+      w[open[i]] = v;
+      if (std::abs(v - o.ambiguity) < kQuickMargin || std::abs(v - (1.0 - o.ambiguity)) < kQuickMargin) {
+        again.push_back(open[i]);
       }
     }
-    Points aq(static_cast<Eigen::Index>(again.size()), 3);
-    for (std::size_t r = 0; r < again.size(); ++r) aq.row(static_cast<Eigen::Index>(r)) = bq.row(again[r]);
-    const Eigen::VectorXd exactEnough = winding.evaluate(aq);
+    const Eigen::VectorXd exactEnough = winding.evaluate(rowsOf(again));
     for (std::size_t r = 0; r < again.size(); ++r) w[again[r]] = exactEnough[static_cast<Eigen::Index>(r)];
   }
   // The nearest samples (votes and disk-soup distances) only for the candidates the tests so far keep: not
