@@ -214,6 +214,10 @@ bool float32Degenerate(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const
 /// The smallest interior angle of triangle (a, b, c), in degrees (0 for coincident corners).
 double minAngleDegrees(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c);
 
+/// minAngleDegrees(a, b, c) < degrees, decided without the arc tangent unless the angle lies within a
+/// relative 1e-9 of the bound (the same answer, for the cleaning's and the projection's per-face tests).
+bool minAngleBelow(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double degrees);
+
 /// Shape statistics of a mesh's triangles.
 struct TriangleQuality {
   std::size_t faces = 0;

@@ -97,6 +97,19 @@ double minAngleDegrees(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const
   return std::atan2(cross, dot) * (180.0 / M_PI);
 }
 
+bool minAngleBelow(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double degrees) {
+  double cross = 0.0, dot = 0.0;
+  if (!smallestAngleParts(a, b, c, cross, dot)) return 0.0 < degrees;
+  // The smallest angle is at most 60 degrees, so dot > 0 unless the triangle is degenerate (cross 0 and a
+  // negative dot: 180 degrees from atan2); those, and angles near the bound, take minAngleDegrees' way.
+  const TangentBound bound(degrees);
+  if (dot > 0.0 && bound.below > 0.0) {
+    if (cross < bound.below * dot) return true;
+    if (cross > bound.above * dot) return false;
+  }
+  return std::atan2(cross, dot) * (180.0 / M_PI) < degrees;
+}
+
 TriangleQuality triangleQuality(const Mesh& mesh, double sliverAngle) {
   if (!(sliverAngle >= 0.0) || !(sliverAngle <= 60.0)) {
     throw InvalidArgument("triangle quality: the sliver angle must be in [0, 60] degrees");

@@ -502,7 +502,7 @@ class Cleaner {
       const double la = na.norm(), lb = nb.norm();
       if (!(la > 0.0)) return false;
       // A sliver's own normal is noise: it must only face the way the surface around it does.
-      const bool sliver = !(lb > 0.0) || minAngleDegrees(before[0], before[1], before[2]) < 1.0;
+      const bool sliver = !(lb > 0.0) || minAngleBelow(before[0], before[1], before[2], 1.0);
       if (sliver) {
         if (!(na.dot(ringNormal) > 0.0)) return false;
       } else if (!(na.dot(nb) >= maxCos * la * lb)) {

@@ -74,8 +74,8 @@ bool triangleAcceptable(const Vec& q0, const Vec& q1, const Vec& q2, const Vec& 
   if (float32Degenerate(q0, q1, q2)) return false;
   const Vec n = (q1 - q0).cross(q2 - q0);
   if (ref.squaredNorm() > 0.0 && !(n.normalized().dot(ref) >= cosMax)) return false;
-  const double angle = minAngleDegrees(q0, q1, q2);
-  return !(angle < minAngle && angle < before());
+  if (!minAngleBelow(q0, q1, q2, minAngle)) return true;
+  return !(minAngleDegrees(q0, q1, q2) < before());
 }
 
 /// Whether moving vertex `vertex` to p keeps every triangle around it acceptable.
