@@ -429,6 +429,22 @@ TEST_CASE("check: triangle quality counts as its angles state, at the bounds to 
     CHECK(want.below1 > 0);
     CHECK(want.below10 > want.below5);
   }
+  // minAngleBelow (the cleaning's and the projection's per-face test) says what the arc tangent says, at
+  // the same bounds, on the same faces (the needles within 2^-44 of a bound included).
+  std::size_t wrong = 0, below = 0, tested = 0;
+  for (const double bound : {0.5, 1.0, 3.0, 5.0, 10.0, 20.0, 60.0, 0.0, 90.0, 120.0}) {
+    for (Eigen::Index f = 0; f < m.faces.rows(); ++f) {
+      const Eigen::Vector3d a = m.vertices.row(m.faces(f, 0)), b = m.vertices.row(m.faces(f, 1)),
+                            c = m.vertices.row(m.faces(f, 2));
+      const bool want = minAngleDegrees(a, b, c) < bound;
+      wrong += minAngleBelow(a, b, c, bound) != want ? 1 : 0;
+      below += want ? 1 : 0;
+      ++tested;
+    }
+  }
+  CHECK(wrong == 0);
+  CHECK(below > tested / 10);
+  CHECK(below < tested - tested / 10);
 }
 
 TEST_CASE("check: float32Degenerate agrees with its rule on the rounded corners, near the boundary too") {
