@@ -146,13 +146,23 @@ struct LevelSetDeviation {
   double seconds = 0.0;
 };
 
+/// First-order distances |f − iso| / |∇f| (−1 where |∇f| < 1e-6) already evaluated at a mesh's vertices
+/// and face centres (the centre (a + b + c) / 3 of its corners in face order), NaN where not known: what
+/// projectToLevelSet evaluated last at the positions it leaves. The sampler's value at a point does not
+/// depend on the rest of its batch, so these are the values an evaluation there would give.
+struct KnownFirstOrder {
+  std::vector<double> vertices;  ///< one a vertex (or empty: none known)
+  std::vector<double> centres;   ///< one a face (or empty: none known)
+};
+
 /// maxSamples > 0 measures an even stride of at most that many of the vertices and face centres, then, for
 /// the max, every candidate near the stride's samples beyond a quarter of the limit (localSamples).
+/// `known` (optional): first-order values taken instead of evaluating (the same measure, fewer evaluations).
 LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const Mesh& mesh, double iso, double side,
-                                    std::size_t maxSamples = 0);
+                                    std::size_t maxSamples = 0, const KnownFirstOrder* known = nullptr);
 /// The same through a field's evaluator; side = the largest side of field.bounds().
 LevelSetDeviation levelSetDeviation(const FieldEvaluator& evaluator, const ImplicitField& field, const Mesh& mesh,
-                                    double iso, std::size_t maxSamples = 0);
+                                    double iso, std::size_t maxSamples = 0, const KnownFirstOrder* known = nullptr);
 
 // ---------------------------------------------------------------------------------------------
 // Moving the mesh onto its level set
@@ -215,6 +225,9 @@ struct ProjectReport {
 struct ProjectResult {
   Mesh mesh;
   ProjectReport report;
+  /// The first-order distances last evaluated at the result's vertices and face centres where they still
+  /// stand (for levelSetDeviation; NaN elsewhere: moved part of the way, moved back, split).
+  KnownFirstOrder known;
 };
 
 /// Moves every vertex of a mesh of {f = iso} onto the level set (Newton steps x ← x − (f − iso) ∇f/|∇f|²,

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <exception>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -28,10 +29,7 @@ void firstOrder(const FieldGradientSampler& sampler, const Points& queries, doub
   if (values.size() != queries.rows() || gradients.rows() != queries.rows()) {
     throw InvalidArgument("level-set deviation: the sampler returned the wrong number of values");
   }
-  for (Eigen::Index i = 0; i < queries.rows(); ++i) {
-    const double g = gradients.row(i).norm();
-    out[i] = g >= 1e-6 ? std::abs(values[i] - iso) / g : -1.0;
-  }
+  for (Eigen::Index i = 0; i < queries.rows(); ++i) out[i] = detail::firstOrderDistance(values[i], gradients.row(i), iso);
 }
 
 /// f and ∇f through a field's evaluator.
@@ -47,9 +45,10 @@ FieldGradientSampler gradientSampler(const FieldEvaluator& evaluator) {
 
 void detail::newtonPaths(const FieldGradientSampler& sampler, Points& x, double iso, double side,
                          std::vector<char>& converged, std::vector<double>& rest, int steps,
-                         const NewtonStart* start, Points* endGradients) {
+                         const NewtonStart* start, Points* endGradients, std::vector<double>* endFirstOrder) {
   const Eigen::Index total = x.rows();
   if (endGradients) *endGradients = Points::Zero(total, 3);
+  if (endFirstOrder) endFirstOrder->assign(static_cast<std::size_t>(total), std::numeric_limits<double>::quiet_NaN());
   converged.assign(static_cast<std::size_t>(total), 0);
   rest.assign(static_cast<std::size_t>(total), 0.0);
   std::vector<Eigen::Index> active(static_cast<std::size_t>(total));
@@ -76,6 +75,7 @@ void detail::newtonPaths(const FieldGradientSampler& sampler, Points& x, double 
       const double g2 = g.squaredNorm();
       const double remaining = g2 > 0.0 ? std::abs(values[i] - iso) / std::sqrt(g2) : HUGE_VAL;
       x.row(id) = at.row(i);
+      if (endFirstOrder) (*endFirstOrder)[static_cast<std::size_t>(id)] = firstOrderDistance(values[i], g, iso);
       // Converged (to float32 noise in f, or to a negligible first-order rest).
       if (remaining <= 1e-5 * side || std::abs(values[i] - iso) <= 1e-6 * side) {
         converged[static_cast<std::size_t>(id)] = 1;
@@ -97,7 +97,7 @@ void detail::newtonPaths(const FieldGradientSampler& sampler, Points& x, double 
 }
 
 LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const Mesh& mesh, double iso, double side,
-                                    std::size_t maxSamples) {
+                                    std::size_t maxSamples, const KnownFirstOrder* known) {
   const auto startTime = std::chrono::steady_clock::now();
   LevelSetDeviation d;
   d.side = side;
@@ -114,17 +114,39 @@ LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const M
             mesh.vertices.row(mesh.faces(f, 2))) /
            3.0;
   };
-  // The distances of the listed candidates: first order, then a Newton path where that is not small.
+  // The first-order distance of candidate s where `known` has it (NaN: not known).
+  const bool knownVertices = known && known->vertices.size() == static_cast<std::size_t>(nv);
+  const bool knownCentres = known && known->centres.size() == static_cast<std::size_t>(nf);
+  const double unknown = std::numeric_limits<double>::quiet_NaN();
+  const auto knownAt = [&](Eigen::Index s) {
+    if (s < nv) return knownVertices ? known->vertices[static_cast<std::size_t>(s)] : unknown;
+    return knownCentres ? known->centres[static_cast<std::size_t>(s - nv)] : unknown;
+  };
+  // The distances of the listed candidates: first order (evaluated where not known), then a Newton path
+  // where that is not small.
   constexpr Eigen::Index kChunk = Eigen::Index{1} << 20;
   const auto measure = [&](const std::vector<Eigen::Index>& ids) {
-    const auto total = static_cast<Eigen::Index>(ids.size());
     std::vector<double> e(ids.size());
+    std::vector<std::size_t> ask;  // the places in ids of the candidates evaluated
+    ask.reserve(ids.size());
+    for (std::size_t s = 0; s < ids.size(); ++s) {
+      const double k = knownAt(ids[s]);
+      if (std::isnan(k)) {
+        ask.push_back(s);
+      } else {
+        e[s] = k;
+      }
+    }
+    const auto total = static_cast<Eigen::Index>(ask.size());
     Points queries;
+    std::vector<double> got;
     for (Eigen::Index begin = 0; begin < total; begin += kChunk) {
       const Eigen::Index end = std::min(total, begin + kChunk);
       queries.resize(end - begin, 3);
-      for (Eigen::Index s = begin; s < end; ++s) queries.row(s - begin) = point(ids[static_cast<std::size_t>(s)]);
-      firstOrder(sampler, queries, iso, e.data() + begin);
+      for (Eigen::Index s = begin; s < end; ++s) queries.row(s - begin) = point(ids[ask[static_cast<std::size_t>(s)]]);
+      got.resize(static_cast<std::size_t>(end - begin));
+      firstOrder(sampler, queries, iso, got.data());
+      for (Eigen::Index s = begin; s < end; ++s) e[ask[static_cast<std::size_t>(s)]] = got[static_cast<std::size_t>(s - begin)];
     }
     std::vector<std::size_t> refine;
     for (std::size_t s = 0; s < e.size(); ++s) {
@@ -286,9 +308,9 @@ LevelSetDeviation levelSetDeviation(const FieldGradientSampler& sampler, const M
 }
 
 LevelSetDeviation levelSetDeviation(const FieldEvaluator& evaluator, const ImplicitField& field, const Mesh& mesh,
-                                    double iso, std::size_t maxSamples) {
+                                    double iso, std::size_t maxSamples, const KnownFirstOrder* known) {
   const FieldGradientSampler sampler = gradientSampler(evaluator);
-  return levelSetDeviation(sampler, mesh, iso, field.bounds().sizes().maxCoeff(), maxSamples);
+  return levelSetDeviation(sampler, mesh, iso, field.bounds().sizes().maxCoeff(), maxSamples, known);
 }
 
 void validateFinishOptions(const MeshFinishOptions& options) {
@@ -386,15 +408,17 @@ FinishResult finishSurfaces(const FieldEvaluator& evaluator, const ImplicitField
         addClean(rep.clean, c.report);
       }
     }
+    KnownFirstOrder known;  // what the projection evaluated where its vertices and faces stand
     if (options.project) {
       const double side = field.bounds().sizes().maxCoeff();
       const ProjectOptions po = detail::finishProjectOptions(options, side, cell);
       ProjectResult p = projectToLevelSet(sampler, mesh, isoValues[i], side, po);
       mesh = std::move(p.mesh);
       rep.project = p.report;
+      known = std::move(p.known);
     }
     if (options.measureDeviation) {
-      rep.deviation = levelSetDeviation(evaluator, field, mesh, isoValues[i], options.deviationSamples);
+      rep.deviation = levelSetDeviation(evaluator, field, mesh, isoValues[i], options.deviationSamples, &known);
       rep.deviationMeasured = true;
     }
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();

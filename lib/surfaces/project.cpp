@@ -166,9 +166,13 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
   if (o.maxFaces > 0) faceLimit = std::min(faceLimit, std::max(o.maxFaces, nf));
 
   std::vector<char> converged;
-  std::vector<double> rest;
+  std::vector<double> rest, endFirstOrder;
   Eigen::VectorXd values;
   Points gradients, endGradients;
+  // The first-order distance last evaluated at each vertex and face centre where it still stands (NaN: not
+  // known), handed to the deviation measure (ProjectResult::known).
+  const double unknown = std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> knownVertex(nv, unknown), knownCentre(nf, unknown);
   // With estimateCentres: ∇f at each vertex where it is now (the vertex was evaluated there or its Newton
   // path ended there), zero where not known; the first round predicts most faces' centres from them.
   std::vector<Vec> vg;
@@ -190,6 +194,7 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
       const auto r = static_cast<Eigen::Index>(i);
       const auto v = static_cast<std::size_t>(list[i]);
       const double g = gradients.row(r).norm();
+      knownVertex[v] = detail::firstOrderDistance(values[r], gradients.row(r), iso);
       // Within 1e-5 of the side already (1% of the deviation target), or at a flat point: left where it is.
       const bool stays = !(g >= 1e-6) || std::abs(values[r] - iso) / g <= 1e-5 * side;
       if (o.estimateCentres) vg[v] = stays && g >= 1e-6 ? Vec(gradients.row(r).transpose()) : Vec::Zero();
@@ -208,7 +213,7 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
     }
     const detail::NewtonStart known{startValues, startGradients};
     detail::newtonPaths(sampler, x, iso, side, converged, rest, kNewtonSteps, &known,
-                        o.estimateCentres ? &endGradients : nullptr);
+                        o.estimateCentres ? &endGradients : nullptr, &endFirstOrder);
     for (std::size_t i = 0; i < go.size(); ++i) {
       const Vec p = x.row(static_cast<Eigen::Index>(i)).transpose();
       const Vec& now = w.v[static_cast<std::size_t>(go[i])];
@@ -222,6 +227,8 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
         const Vec to = now + part * (p - now);
         if (moveAcceptable(w, go[i], to, cosMax, o.minAngle)) {
           w.v[static_cast<std::size_t>(go[i])] = to;
+          // Known where it stands only at the path's end itself (now + (p − now) is p but for a rounding).
+          knownVertex[static_cast<std::size_t>(go[i])] = (to.array() == p.array()).all() ? endFirstOrder[i] : unknown;
           if (o.estimateCentres && part == 1.0) {
             vg[static_cast<std::size_t>(go[i])] = endGradients.row(static_cast<Eigen::Index>(i)).transpose();
           }
@@ -305,6 +312,7 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
     std::vector<Eigen::Index> farRow;
     for (std::size_t i = 0; i < evaluate.size(); ++i) {
       const auto r = static_cast<Eigen::Index>(i);
+      knownCentre[static_cast<std::size_t>(evaluate[i])] = detail::firstOrderDistance(values[r], gradients.row(r), iso);
       const double g = gradients.row(r).norm();
       const double e = g >= 1e-6 ? std::abs(values[r] - iso) / g : HUGE_VAL;
       if (e > o.target) {
@@ -389,7 +397,7 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
           0.5 * (w.v[static_cast<std::size_t>(chosen[i].a)] + w.v[static_cast<std::size_t>(chosen[i].b)]).transpose();
     }
     const Points mids = x;
-    if (!chosen.empty()) detail::newtonPaths(sampler, x, iso, side, converged, rest, kNewtonSteps);
+    if (!chosen.empty()) detail::newtonPaths(sampler, x, iso, side, converged, rest, kNewtonSteps, nullptr, nullptr, &endFirstOrder);
     std::vector<Index> fresh;
     std::size_t splitsThisRound = 0;
     for (std::size_t i = 0; i < chosen.size(); ++i) {
@@ -421,6 +429,7 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
       const auto m = static_cast<Index>(w.v.size());
       const auto g1 = static_cast<Index>(w.f.size()), g2 = g1 + 1;
       w.v.push_back(p);
+      knownVertex.push_back(endFirstOrder[i]);
       w.extracted.push_back(0.5 * (w.extracted[static_cast<std::size_t>(a)] + w.extracted[static_cast<std::size_t>(b)]));
       ++rep.moved;
       // (a, b, c) → (a, m, c) + (m, b, c); (b, a, d) → (b, m, d) + (m, a, d): orientations kept.
@@ -432,6 +441,8 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
       w.n0.push_back(nOther);
       touched.resize(w.f.size(), -1);
       gaveUp.resize(w.f.size(), 0);
+      knownCentre[static_cast<std::size_t>(face)] = knownCentre[static_cast<std::size_t>(other)] = unknown;
+      knownCentre.resize(w.f.size(), unknown);
       for (const Index y : {face, other, g1, g2}) touched[static_cast<std::size_t>(y)] = round;
       w.vf.push_back({face, g1, other, g2});
       replaceFace(w.vf[static_cast<std::size_t>(b)], face, g1);
@@ -552,7 +563,20 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
       write();
     }
     rep.reverted = reverted;
+    // What moved back stands where nothing was evaluated (nor do the centres of its faces).
+    if (reverted > 0) {
+      for (std::size_t v = 0; v < w.v.size(); ++v) {
+        if (back[v]) knownVertex[v] = unknown;
+      }
+      for (std::size_t face = 0; face < w.f.size(); ++face) {
+        for (const Index vtx : w.f[face]) {
+          if (back[static_cast<std::size_t>(vtx)]) knownCentre[face] = unknown;
+        }
+      }
+    }
   }
+  out.known.vertices = std::move(knownVertex);
+  out.known.centres = std::move(knownCentre);
   rep.verticesAfter = w.v.size();
   rep.facesAfter = w.f.size();
   rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - startTime).count();

@@ -360,6 +360,56 @@ FieldGradientSampler sphereSampler(const Eigen::Vector3d& c, double r) {
   };
 }
 
+/// Checks the first-order values a projection hands on (ProjectResult::known): each known one is what an
+/// evaluation at its vertex or face centre gives now, bit for bit (a value left from before a move back or
+/// a split fails here). Returns {known vertices, known centres}.
+std::pair<std::size_t, std::size_t> checkKnownFirstOrder(const FieldGradientSampler& sampler, const ProjectResult& p,
+                                                         double iso) {
+  const Mesh& m = p.mesh;
+  REQUIRE(p.known.vertices.size() == static_cast<std::size_t>(m.vertices.rows()));
+  REQUIRE(p.known.centres.size() == static_cast<std::size_t>(m.faces.rows()));
+  Points at(m.vertices.rows() + m.faces.rows(), 3);
+  at.topRows(m.vertices.rows()) = m.vertices;
+  for (Eigen::Index f = 0; f < m.faces.rows(); ++f) {
+    at.row(m.vertices.rows() + f) =
+        (m.vertices.row(m.faces(f, 0)) + m.vertices.row(m.faces(f, 1)) + m.vertices.row(m.faces(f, 2))) / 3.0;
+  }
+  Eigen::VectorXd v;
+  Points g;
+  sampler(at, v, g);
+  std::size_t vertices = 0, centres = 0, wrong = 0;
+  for (Eigen::Index i = 0; i < at.rows(); ++i) {
+    const bool vertex = i < m.vertices.rows();
+    const double k = vertex ? p.known.vertices[static_cast<std::size_t>(i)]
+                            : p.known.centres[static_cast<std::size_t>(i - m.vertices.rows())];
+    if (std::isnan(k)) continue;
+    (vertex ? vertices : centres) += 1;
+    const double gn = g.row(i).norm();
+    const double want = gn >= 1e-6 ? std::abs(v[i] - iso) / gn : -1.0;
+    wrong += k == want ? 0 : 1;
+  }
+  CHECK(wrong == 0);
+  return {vertices, centres};
+}
+
+/// The deviation measures' figures, all but the time.
+void checkSameDeviation(const LevelSetDeviation& a, const LevelSetDeviation& b) {
+  CHECK(a.candidates == b.candidates);
+  CHECK(a.samples == b.samples);
+  CHECK(a.flatSamples == b.flatSamples);
+  CHECK(a.refinedSamples == b.refinedSamples);
+  CHECK(a.localSamples == b.localSamples);
+  CHECK(a.max == b.max);
+  CHECK(a.mean == b.mean);
+  CHECK(a.rms == b.rms);
+  CHECK(a.p99 == b.p99);
+  CHECK(a.p999 == b.p999);
+  CHECK(a.maxAt == b.maxAt);
+  CHECK(a.aboveLimit == b.aboveLimit);
+  CHECK(a.aboveLimitAt == b.aboveLimitAt);
+  CHECK(a.nearLimitAt == b.nearLimitAt);
+}
+
 }  // namespace
 
 TEST_SUITE("surfaces") {
@@ -459,6 +509,41 @@ TEST_CASE("projection moves a coarse sphere onto its level set and splits it to 
       CHECK(a.report.splits > 0);
     }
     if (target == 3e-2) CHECK(a.report.centresPredicted > static_cast<std::size_t>(m.faces.rows()) / 2);
+  }
+
+  // The projection hands the deviation measure the first-order values it evaluated where its vertices
+  // and face centres stand (the vertices' Newton ends, the centres it tested, the splits' new vertices;
+  // not the predicted centres): the same measure, strided or full, with fewer evaluations.
+  {
+    ProjectOptions predicted = o;
+    predicted.estimateCentres = true;
+    const ProjectResult a = projectToLevelSet(sampler, m, iso, side, predicted);
+    const auto [knownVertices, knownCentres] = checkKnownFirstOrder(sampler, a, iso);
+    CHECK(knownVertices > static_cast<std::size_t>(a.mesh.vertices.rows()) / 2);
+    CHECK(knownCentres > 0);
+    CHECK(knownCentres < static_cast<std::size_t>(a.mesh.faces.rows()));  // the predicted ones are not known
+    std::size_t asked = 0;
+    const FieldGradientSampler counting = [&](const Points& q, Eigen::VectorXd& v, Points& g) {
+      asked += static_cast<std::size_t>(q.rows());
+      sampler(q, v, g);
+    };
+    // Stopped after one round of splits: the split faces' centres were not evaluated again.
+    ProjectOptions short1 = predicted;
+    short1.rounds = 1;
+    const ProjectResult b = projectToLevelSet(sampler, m, iso, side, short1);
+    CHECK(b.report.splits > 0);
+    checkKnownFirstOrder(sampler, b, iso);
+    checkSameDeviation(levelSetDeviation(sampler, b.mesh, iso, side), levelSetDeviation(sampler, b.mesh, iso, side, 0, &b.known));
+    for (const std::size_t samples : {std::size_t{0}, std::size_t{200}}) {
+      CAPTURE(samples);
+      asked = 0;
+      const LevelSetDeviation plain = levelSetDeviation(counting, a.mesh, iso, side, samples);
+      const std::size_t plainAsked = asked;
+      asked = 0;
+      const LevelSetDeviation helped = levelSetDeviation(counting, a.mesh, iso, side, samples, &a.known);
+      checkSameDeviation(plain, helped);
+      CHECK(asked < plainAsked);
+    }
   }
 
   // Without a target: the vertices move, nothing is split. A face budget stops the splits.
@@ -585,6 +670,10 @@ TEST_CASE("projection undoes the moves that make two sheets cross, testing only 
   const ProjectResult p = projectToLevelSet(sampler, m, 0.0, 1.0, ProjectOptions{});
   CHECK(p.report.selfIntersectionsFound == full.count);
   CHECK(p.report.reverted > 0);
+  // What moved back, and the centres of its faces, are not handed on as known (no stale values).
+  const auto known = checkKnownFirstOrder(sampler, p, 0.0);
+  CHECK(known.first + p.report.reverted <= static_cast<std::size_t>(p.mesh.vertices.rows()));
+  checkSameDeviation(levelSetDeviation(sampler, p.mesh, 0.0, 1.0), levelSetDeviation(sampler, p.mesh, 0.0, 1.0, 0, &p.known));
   CHECK(p.report.reverted < static_cast<std::size_t>(m.vertices.rows()));
   CHECK(findSelfIntersections(p.mesh, all).count == 0);
   CHECK(checkMesh(p.mesh).quality.float32DegenerateFaces == 0);
