@@ -19,6 +19,13 @@ class ParallelErrors {
       keep(std::current_exception());
     }
   }
+  /// Whether an exception has been kept (safe to ask inside the region).
+  bool failed() const noexcept {
+    bool kept = false;
+#pragma omp critical(duplexfit_measure_errors)
+    kept = static_cast<bool>(error_);
+    return kept;
+  }
   /// Rethrows the kept exception, if any (call after the parallel region).
   void rethrow() const {
     if (error_) std::rethrow_exception(error_);

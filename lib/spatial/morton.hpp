@@ -9,6 +9,8 @@
 #include <limits>
 #include <vector>
 
+#include <omp.h>
+
 #include "duplexfit/types.hpp"
 
 namespace duplexfit::detail {
@@ -64,33 +66,72 @@ class MortonGrid {
 /// order, as keys code << 32 | entry. Two passes over the points: their box, then the codes.
 template <typename PointOf>
 std::vector<std::uint64_t> mortonSortedKeys(std::size_t n, PointOf point) {
+  // Both passes and the sort's counting and scattering on the team's threads, each over its own contiguous
+  // part of the entries (a stable LSD radix sort: a thread's entries of a digit go after those of the
+  // threads before it), so the result is the serial one for any team size. fandisk_550k's 3.6M-face meshes:
+  // 0.14 s of one thread a call before (every tree build and large field evaluation sorts).
   double lo[3], hi[3];
   for (int a = 0; a < 3; ++a) {
     lo[a] = std::numeric_limits<double>::infinity();
     hi[a] = -lo[a];
   }
-  for (std::size_t i = 0; i < n; ++i) {
-    double x[3];
-    point(i, x);
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = std::min(lo[a], x[a]);
-      hi[a] = std::max(hi[a], x[a]);
+  std::vector<std::uint64_t> key(n), next(n);
+  constexpr std::size_t kSerial = std::size_t{1} << 16;  // fewer entries: one thread
+  const int threads = n >= kSerial ? std::max(1, omp_get_max_threads()) : 1;
+  std::vector<std::size_t> buckets(static_cast<std::size_t>(threads) * 1024);  // per thread and digit
+  const auto parts = [n](int t, int nt, std::size_t& b, std::size_t& e) {
+    b = n * static_cast<std::size_t>(t) / static_cast<std::size_t>(nt);
+    e = n * static_cast<std::size_t>(t + 1) / static_cast<std::size_t>(nt);
+  };
+#pragma omp parallel num_threads(threads)
+  {
+    const int nt = omp_get_num_threads(), t = omp_get_thread_num();
+    std::size_t b = 0, e = 0;
+    parts(t, nt, b, e);
+    double mlo[3] = {lo[0], lo[1], lo[2]}, mhi[3] = {hi[0], hi[1], hi[2]};
+    for (std::size_t i = b; i < e; ++i) {
+      double x[3];
+      point(i, x);
+      for (int a = 0; a < 3; ++a) {
+        mlo[a] = std::min(mlo[a], x[a]);
+        mhi[a] = std::max(mhi[a], x[a]);
+      }
     }
-  }
-  const MortonGrid grid(lo, hi, MortonGrid::Box::Fitted, 10);
-  std::vector<std::uint64_t> key(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    double x[3];
-    point(i, x);
-    key[i] = (grid.key(x) << 32) | i;
-  }
-  std::vector<std::uint64_t> next(n);
-  for (int shift = 32; shift < 62; shift += 10) {
-    std::size_t bucket[1025] = {};
-    for (const std::uint64_t k : key) ++bucket[((k >> shift) & 1023U) + 1];
-    for (std::size_t d = 1; d <= 1024; ++d) bucket[d] += bucket[d - 1];
-    for (const std::uint64_t k : key) next[bucket[(k >> shift) & 1023U]++] = k;
-    key.swap(next);
+#pragma omp critical(duplexfit_morton_box)
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::min(lo[a], mlo[a]);
+      hi[a] = std::max(hi[a], mhi[a]);
+    }
+#pragma omp barrier
+    const MortonGrid grid(lo, hi, MortonGrid::Box::Fitted, 10);
+    for (std::size_t i = b; i < e; ++i) {
+      double x[3];
+      point(i, x);
+      key[i] = (grid.key(x) << 32) | i;
+    }
+    for (int shift = 32; shift < 62; shift += 10) {
+#pragma omp barrier
+      std::size_t* mine = buckets.data() + 1024 * static_cast<std::size_t>(t);
+      std::fill(mine, mine + 1024, std::size_t{0});
+      for (std::size_t i = b; i < e; ++i) ++mine[(key[i] >> shift) & 1023U];
+#pragma omp barrier
+#pragma omp single
+      {
+        std::size_t at = 0;
+        for (std::size_t d = 0; d < 1024; ++d) {
+          for (int u = 0; u < nt; ++u) {
+            std::size_t& c = buckets[1024 * static_cast<std::size_t>(u) + d];
+            const std::size_t count = c;
+            c = at;
+            at += count;
+          }
+        }
+      }
+      for (std::size_t i = b; i < e; ++i) next[mine[(key[i] >> shift) & 1023U]++] = key[i];
+#pragma omp barrier
+#pragma omp single
+      key.swap(next);
+    }
   }
   return key;
 }

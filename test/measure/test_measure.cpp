@@ -4,7 +4,10 @@
 // validation errors that name the source and element.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
+#include <vector>
 #include <random>
 #include <string>
 
@@ -127,6 +130,59 @@ TEST_CASE("measure: BVH distances equal brute force on random meshes and queries
       CHECK(own.distance == g.distance);
     }
     CHECK(got[0].distance <= 1e-15);
+  }
+}
+
+TEST_CASE("measure: a BVH whose two halves are built at once gives brute force's distances and boxes") {
+  // 81,920 faces: above the size where the root's two subtrees are built on two threads. Two spheres with
+  // jittered vertices (no two triangles alike), queries near and far.
+  Mesh m = icosphere(6, 1.0);
+  std::mt19937 rng(42);
+  std::uniform_real_distribution<double> jitter(-1e-3, 1e-3), u(-1.5, 1.5);
+  for (Eigen::Index v = 0; v < m.vertices.rows(); ++v) {
+    for (int c = 0; c < 3; ++c) m.vertices(v, c) += jitter(rng);
+  }
+  REQUIRE(m.faces.rows() > 65536);
+  const TriangleBvh tree(m);
+  CHECK(tree.faceCount() == static_cast<std::size_t>(m.faces.rows()));
+  CHECK(tree.depth() >= 10);
+  Points q(60, 3);
+  for (Eigen::Index i = 0; i < q.rows(); ++i) q.row(i) << u(rng), u(rng), u(rng);
+  for (Eigen::Index i = 0; i < 20; ++i) q.row(i) = m.vertices.row(i * 97).normalized() * (1.0 + 0.01 * jitter(rng) * 1e3);
+  const std::vector<ClosestPoint> got = tree.closest(q);
+  std::size_t wrong = 0;
+  for (Eigen::Index i = 0; i < q.rows(); ++i) {
+    double best = std::numeric_limits<double>::infinity();
+    for (Eigen::Index f = 0; f < m.faces.rows(); ++f) {
+      best = std::min(best, closestPointOnTriangle(q.row(i).transpose(), m.vertices.row(m.faces(f, 0)).transpose(),
+                                                   m.vertices.row(m.faces(f, 1)).transpose(),
+                                                   m.vertices.row(m.faces(f, 2)).transpose())
+                                .distance);
+    }
+    wrong += got[static_cast<std::size_t>(i)].distance == best ? 0 : 1;
+  }
+  CHECK(wrong == 0);
+  // Box queries on both halves and across the split.
+  for (const double x0 : {-1.2, -0.1, 0.6}) {
+    const Eigen::Vector3d lo(x0, -0.3, -1.2), hi(x0 + 0.5, 0.2, 1.2);
+    std::vector<std::int64_t> hits;
+    tree.overlapping(lo, hi, hits);
+    std::sort(hits.begin(), hits.end());
+    std::vector<std::int64_t> want;
+    for (Eigen::Index f = 0; f < m.faces.rows(); ++f) {
+      bool miss = false;
+      for (int c = 0; c < 3; ++c) {
+        double mn = 1e300, mx = -1e300;
+        for (int k = 0; k < 3; ++k) {
+          mn = std::min(mn, m.vertices(m.faces(f, k), c));
+          mx = std::max(mx, m.vertices(m.faces(f, k), c));
+        }
+        miss = miss || mn > hi[c] || mx < lo[c];
+      }
+      if (!miss) want.push_back(f);
+    }
+    CHECK(!want.empty());
+    CHECK(hits == want);
   }
 }
 
