@@ -417,25 +417,34 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
     // The cells of the points beyond half the limit (the neck's extent, so that one round usually covers
     // it) or, when those span too many cells, of the points beyond the limit, with the cells within
     // kNeckRadius of them (kDeepRadius: the deeper ones), added to the earlier rounds'.
+    // The cells as one integer each, ordered as the cells' (x, y, z) triples: sorting up to 125 cells a
+    // point of 4,096 as triples took 0.1–0.2 s of a wheel's offset mesh whose pass is then refused.
+    const auto ny = static_cast<std::int64_t>(grid.cells(1)), nz = static_cast<std::int64_t>(grid.cells(2));
     const auto cellsAround = [&](const std::vector<Eigen::Vector3d>& points, int radius,
                                  const std::vector<std::array<int, 3>>& base) {
-      std::vector<std::array<int, 3>> out = base;
+      std::vector<std::int64_t> ids;
+      ids.reserve(base.size() + points.size() * static_cast<std::size_t>((2 * radius + 1) * (2 * radius + 1) * (2 * radius + 1)));
+      for (const std::array<int, 3>& c : base) ids.push_back((c[0] * ny + c[1]) * nz + c[2]);
       for (const Eigen::Vector3d& p : points) {
         const std::array<int, 3> c = detail::cellOf(grid, p);
-        for (int dz = -radius; dz <= radius; ++dz) {
+        for (int dx = -radius; dx <= radius; ++dx) {
           for (int dy = -radius; dy <= radius; ++dy) {
-            for (int dx = -radius; dx <= radius; ++dx) {
+            for (int dz = -radius; dz <= radius; ++dz) {
               const std::array<int, 3> n = {c[0] + dx, c[1] + dy, c[2] + dz};
               if (n[0] >= 0 && n[1] >= 0 && n[2] >= 0 && n[0] < grid.cells(0) && n[1] < grid.cells(1) &&
                   n[2] < grid.cells(2)) {
-                out.push_back(n);
+                ids.push_back((n[0] * ny + n[1]) * nz + n[2]);
               }
             }
           }
         }
       }
-      std::sort(out.begin(), out.end());
-      out.erase(std::unique(out.begin(), out.end()), out.end());
+      std::sort(ids.begin(), ids.end());
+      ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+      std::vector<std::array<int, 3>> out(ids.size());
+      for (std::size_t k = 0; k < ids.size(); ++k) {
+        out[k] = {static_cast<int>(ids[k] / (ny * nz)), static_cast<int>((ids[k] / nz) % ny), static_cast<int>(ids[k] % nz)};
+      }
       return out;
     };
     std::vector<std::array<int, 3>> wider = cellsAround(d.nearLimitAt, kNeckRadius, cells);
