@@ -58,6 +58,24 @@ void expectInvalid(Action&& action, std::initializer_list<const char*> parts) {
   CHECK_MESSAGE(thrown, "no InvalidArgument thrown");
 }
 
+/// The faces of m whose bounding boxes meet [lo, hi], by testing every face (ascending).
+std::vector<std::int64_t> facesOverlapping(const Mesh& m, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
+  std::vector<std::int64_t> out;
+  for (Eigen::Index f = 0; f < m.faces.rows(); ++f) {
+    bool miss = false;
+    for (int c = 0; c < 3; ++c) {
+      double mn = 1e300, mx = -1e300;
+      for (int k = 0; k < 3; ++k) {
+        mn = std::min(mn, m.vertices(m.faces(f, k), c));
+        mx = std::max(mx, m.vertices(m.faces(f, k), c));
+      }
+      miss = miss || mn > hi[c] || mx < lo[c];
+    }
+    if (!miss) out.push_back(f);
+  }
+  return out;
+}
+
 }  // namespace
 
 TEST_SUITE("measure") {
@@ -168,19 +186,7 @@ TEST_CASE("measure: a BVH whose two halves are built at once gives brute force's
     std::vector<std::int64_t> hits;
     tree.overlapping(lo, hi, hits);
     std::sort(hits.begin(), hits.end());
-    std::vector<std::int64_t> want;
-    for (Eigen::Index f = 0; f < m.faces.rows(); ++f) {
-      bool miss = false;
-      for (int c = 0; c < 3; ++c) {
-        double mn = 1e300, mx = -1e300;
-        for (int k = 0; k < 3; ++k) {
-          mn = std::min(mn, m.vertices(m.faces(f, k), c));
-          mx = std::max(mx, m.vertices(m.faces(f, k), c));
-        }
-        miss = miss || mn > hi[c] || mx < lo[c];
-      }
-      if (!miss) want.push_back(f);
-    }
+    const std::vector<std::int64_t> want = facesOverlapping(m, lo, hi);
     CHECK(!want.empty());
     CHECK(hits == want);
   }
@@ -193,20 +199,7 @@ TEST_CASE("measure: box queries return exactly the faces whose boxes overlap") {
   std::vector<std::int64_t> got;
   tree.overlapping(lo, hi, got);
   std::sort(got.begin(), got.end());
-  std::vector<std::int64_t> want;
-  for (Eigen::Index f = 0; f < m.faces.rows(); ++f) {
-    bool miss = false;
-    for (int c = 0; c < 3; ++c) {
-      double mn = 1e300, mx = -1e300;
-      for (int k = 0; k < 3; ++k) {
-        mn = std::min(mn, m.vertices(m.faces(f, k), c));
-        mx = std::max(mx, m.vertices(m.faces(f, k), c));
-      }
-      miss = miss || mn > hi[c] || mx < lo[c];
-    }
-    if (!miss) want.push_back(f);
-  }
-  CHECK(got == want);
+  CHECK(got == facesOverlapping(m, lo, hi));
   CHECK(tree.depth() >= 2);
 }
 
