@@ -298,7 +298,7 @@ struct Builder {
   /// large (each writes its own range of nodes: the right one starts after the left's count): the same nodes
   /// in the same order as one thread's build. fandisk_550k's zero mesh: 0.39 s of a serial build.
   void buildRoot(std::size_t m, double axis[3]) {
-    if (m <= kLeafSize || m < kParallelBuild) {
+    if (m <= kLeafSize || m < kParallelBuild || detail::maxThreads() < 2) {
       d.nodes.resize(count(0, m, 1));
       build(0, m, 1, axis, 0);
       return;
