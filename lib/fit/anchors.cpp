@@ -182,12 +182,7 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
     for (std::size_t r = 0; r < band.size(); ++r) {
       if (clear[r] != 0) open.push_back(static_cast<Eigen::Index>(r));
     }
-    const auto rowsOf = [&bq](const std::vector<Eigen::Index>& rows) {
-      Points sub(static_cast<Eigen::Index>(rows.size()), 3);
-      for (std::size_t r = 0; r < rows.size(); ++r) sub.row(static_cast<Eigen::Index>(r)) = bq.row(rows[r]);
-      return sub;
-    };
-    const Eigen::VectorXd quick = winding.evaluate(rowsOf(open), kQuickBeta);
+    const Eigen::VectorXd quick = winding.evaluate(bq(open, Eigen::all), kQuickBeta);
     std::vector<Eigen::Index> again;
     for (std::size_t i = 0; i < open.size(); ++i) {
       const double v = quick[static_cast<Eigen::Index>(i)];
@@ -196,7 +191,7 @@ Anchors levelAnchors(const Eigen::AlignedBox3d& box, const Points& inputPoints, 
         again.push_back(open[i]);
       }
     }
-    const Eigen::VectorXd exactEnough = winding.evaluate(rowsOf(again));
+    const Eigen::VectorXd exactEnough = winding.evaluate(bq(again, Eigen::all));
     for (std::size_t r = 0; r < again.size(); ++r) w[again[r]] = exactEnough[static_cast<Eigen::Index>(r)];
   }
   // The nearest samples (votes and disk-soup distances) only for the candidates the tests so far keep: not

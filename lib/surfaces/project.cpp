@@ -193,11 +193,12 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
     for (std::size_t i = 0; i < list.size(); ++i) {
       const auto r = static_cast<Eigen::Index>(i);
       const auto v = static_cast<std::size_t>(list[i]);
-      const double g = gradients.row(r).norm();
-      knownVertex[v] = detail::firstOrderDistance(values[r], gradients.row(r), iso);
+      // |f − iso| / |∇f| here, −1 at a flat point (|∇f| < 1e-6).
+      const double first = detail::firstOrderDistance(values[r], gradients.row(r), iso);
+      knownVertex[v] = first;
       // Within 1e-5 of the side already (1% of the deviation target), or at a flat point: left where it is.
-      const bool stays = !(g >= 1e-6) || std::abs(values[r] - iso) / g <= 1e-5 * side;
-      if (o.estimateCentres) vg[v] = stays && g >= 1e-6 ? Vec(gradients.row(r).transpose()) : Vec::Zero();
+      const bool stays = first < 0.0 || first <= 1e-5 * side;
+      if (o.estimateCentres) vg[v] = stays && first >= 0.0 ? Vec(gradients.row(r).transpose()) : Vec::Zero();
       if (stays) continue;
       go.push_back(list[i]);
       goRow.push_back(r);
@@ -312,9 +313,9 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
     std::vector<Eigen::Index> farRow;
     for (std::size_t i = 0; i < evaluate.size(); ++i) {
       const auto r = static_cast<Eigen::Index>(i);
-      knownCentre[static_cast<std::size_t>(evaluate[i])] = detail::firstOrderDistance(values[r], gradients.row(r), iso);
-      const double g = gradients.row(r).norm();
-      const double e = g >= 1e-6 ? std::abs(values[r] - iso) / g : HUGE_VAL;
+      const double first = detail::firstOrderDistance(values[r], gradients.row(r), iso);
+      knownCentre[static_cast<std::size_t>(evaluate[i])] = first;
+      const double e = first < 0.0 ? HUGE_VAL : first;  // a flat centre (−1): marked
       if (e > o.target) {
         far.push_back(evaluate[i]);
         farFirst.push_back(e);
