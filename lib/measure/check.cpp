@@ -163,25 +163,18 @@ struct FaceSource {
     sub(p + 6, p + 3, bc);
     return kRelTol * std::sqrt(std::max({norm2(ab), norm2(ac), norm2(bc)}));
   }
-  Tri tri(std::size_t i) const {
-    Tri t{};
-    corners(i, t.p);
-    for (std::size_t k = 0; k < 3; ++k) t.id[k] = welded[static_cast<std::size_t>(f[3 * i + k])];
-    double ab[3], ac[3], bc[3];
-    sub(t.p + 3, t.p, ab);
-    sub(t.p + 6, t.p, ac);
-    sub(t.p + 6, t.p + 3, bc);
-    cross(ab, ac, t.n);
-    const double len = std::sqrt(norm2(t.n));
-    const double longest = std::sqrt(std::max({norm2(ab), norm2(ac), norm2(bc)}));
-    t.tol = kRelTol * longest;
-    t.skip = t.id[0] == t.id[1] || t.id[1] == t.id[2] || t.id[0] == t.id[2] || !(len > 1e-12 * longest * longest);
-    if (!t.skip) {
-      for (double& x : t.n) x /= len;
-    }
-    return t;
-  }
+  Tri tri(std::size_t i) const;
 };
+
+Tri preparedTri(const double* p, const std::int32_t* id);
+
+Tri FaceSource::tri(std::size_t i) const {
+  double p[9];
+  std::int32_t id[3];
+  corners(i, p);
+  for (std::size_t k = 0; k < 3; ++k) id[k] = welded[static_cast<std::size_t>(f[3 * i + k])];
+  return preparedTri(p, id);
+}
 
 /// Distances of q's corners to the plane (unit normal n through a), snapped to 0 within tol.
 void planeDistances(const double* q, const double* n, const double* a, double tol, double* d) {
@@ -197,24 +190,24 @@ bool sameStrictSide(const double* d) {
   return (d[0] > 0.0 && d[1] > 0.0 && d[2] > 0.0) || (d[0] < 0.0 && d[1] < 0.0 && d[2] < 0.0);
 }
 
-/// The interval of a triangle on the line with direction D (unit), given its corners' plane distances.
-void lineInterval(const double* p, const double* d, const double* dir, double& lo, double& hi) {
-  lo = std::numeric_limits<double>::infinity();
-  hi = -lo;
-  auto add = [&](double t) {
-    lo = std::min(lo, t);
-    hi = std::max(hi, t);
-  };
-  for (int k = 0; k < 3; ++k) {
-    if (d[k] == 0.0) add(dot(dir, p + 3 * k));
-    const int m = (k + 1) % 3;
-    if ((d[k] > 0.0 && d[m] < 0.0) || (d[k] < 0.0 && d[m] > 0.0)) {
-      const double t = d[k] / (d[k] - d[m]);
-      double x[3];
-      for (int c = 0; c < 3; ++c) x[c] = p[3 * k + c] + t * (p[3 * m + c] - p[3 * k + c]);
-      add(dot(dir, x));
+/// The part of a triangle (corners p) in a plane, given its corners' distances d to it (snapped, not all
+/// zero, not all on one strict side): its corners on the plane and its edges' crossings of it, at most two
+/// points (3 coordinates each) into out; returns how many.
+int crossingSegment(const double* p, const double* d, double* out) {
+  int m = 0;
+  for (int k = 0; k < 3 && m < 2; ++k) {
+    if (d[k] == 0.0) {
+      for (int c = 0; c < 3; ++c) out[3 * m + c] = p[3 * k + c];
+      ++m;
+    }
+    const int n = (k + 1) % 3;
+    if (m < 2 && ((d[k] > 0.0 && d[n] < 0.0) || (d[k] < 0.0 && d[n] > 0.0))) {
+      const double t = d[k] / (d[k] - d[n]);
+      for (int c = 0; c < 3; ++c) out[3 * m + c] = p[3 * k + c] + t * (p[3 * n + c] - p[3 * k + c]);
+      ++m;
     }
   }
+  return m;
 }
 
 double orient2(const double* a, const double* b, const double* c) {
@@ -269,6 +262,12 @@ bool coplanarIntersect(const double* p, const double* q, const double* n, double
   return inside2(a, b, tol) || inside2(b, a, tol);
 }
 
+/// Planes of two faces closer than this (the sine of their angle) are nearly parallel.
+constexpr double kParallel = 1e-6;
+/// Corners this close to the other face's plane, relative to the longer longest edge, lie on it when the
+/// planes are nearly parallel.
+constexpr double kNearPlane = 1e-6;
+
 /// Triangles without a shared vertex: do they touch or cross (within tol)?
 bool disjointPairIntersect(const Tri& s, const Tri& t, double tol) {
   double dq[3], dp[3];
@@ -278,16 +277,43 @@ bool disjointPairIntersect(const Tri& s, const Tri& t, double tol) {
   if (sameStrictSide(dp)) return false;
   if (dq[0] == 0.0 && dq[1] == 0.0 && dq[2] == 0.0) return coplanarIntersect(s.p, t.p, s.n, tol);
   if (dp[0] == 0.0 && dp[1] == 0.0 && dp[2] == 0.0) return coplanarIntersect(s.p, t.p, t.n, tol);
+  // Planes at an angle below kParallel with every corner within kNearPlane of the longer longest edge of
+  // the other's plane: the faces are as good as coplanar (their gap is far below float32's rounding of
+  // the corners) and touch where they overlap in the plane.
   double dir[3];
   cross(s.n, t.n, dir);
-  const double len = std::sqrt(norm2(dir));
-  if (!(len > 0.0)) return coplanarIntersect(s.p, t.p, s.n, tol);
-  for (double& x : dir) x /= len;
-  double lo1, hi1, lo2, hi2;
-  lineInterval(s.p, dp, dir, lo1, hi1);
-  lineInterval(t.p, dq, dir, lo2, hi2);
-  if (!(lo1 <= hi1) || !(lo2 <= hi2)) return false;
-  return std::max(lo1, lo2) <= std::min(hi1, hi2) + tol;
+  if (norm2(dir) < kParallel * kParallel) {
+    const double near = kNearPlane * std::max(s.tol, t.tol) / kRelTol;
+    bool close = true;
+    for (int k = 0; k < 3; ++k) close = close && std::abs(dq[k]) <= near && std::abs(dp[k]) <= near;
+    if (close) return coplanarIntersect(s.p, t.p, s.n, tol);
+  }
+  // Two planes: s ∩ t lies in t's plane, so it is the part of s there (a segment or a point: its corners
+  // on the plane and its edges' crossings) met with t, a test in t's plane. (The textbook test compares
+  // the two parts' intervals on the planes' common line; but the corners snapped onto a plane lie off that
+  // line, by up to tol over the sine of the planes' angle: two nearly coplanar faces side by side, each
+  // with corners within tol of the other's plane, were reported as crossing.)
+  double seg[6];
+  const int m = crossingSegment(s.p, dp, seg);
+  if (m == 0) return false;
+  int drop = 0;
+  for (int k = 1; k < 3; ++k) {
+    if (std::abs(t.n[k]) > std::abs(t.n[drop])) drop = k;
+  }
+  const int u = (drop + 1) % 3, w = (drop + 2) % 3;
+  const double a[2] = {seg[u], seg[w]};
+  const double b[2] = {seg[3 * (m - 1) + u], seg[3 * (m - 1) + w]};
+  double tt[6];
+  for (int k = 0; k < 3; ++k) {
+    tt[2 * k] = t.p[3 * k + u];
+    tt[2 * k + 1] = t.p[3 * k + w];
+  }
+  if (inside2(tt, a, tol) || inside2(tt, b, tol)) return true;
+  if (m == 1) return false;
+  for (int j = 0; j < 3; ++j) {
+    if (segments2(a, b, tt + 2 * j, tt + 2 * ((j + 1) % 3), tol)) return true;
+  }
+  return false;
 }
 
 /// Is direction d strictly inside the sector spanned by e1, e2 (angle below 180°)?
@@ -637,6 +663,26 @@ std::vector<std::int64_t> nearAsked(const FaceSource& faces, const std::vector<c
   return out;
 }
 
+/// The triangle with corners p and vertex ids id, prepared as FaceSource::tri prepares a face.
+Tri preparedTri(const double* p, const std::int32_t* id) {
+  Tri t{};
+  std::copy(p, p + 9, t.p);
+  std::copy(id, id + 3, t.id);
+  double ab[3], ac[3], bc[3];
+  sub(t.p + 3, t.p, ab);
+  sub(t.p + 6, t.p, ac);
+  sub(t.p + 6, t.p + 3, bc);
+  cross(ab, ac, t.n);
+  const double len = std::sqrt(norm2(t.n));
+  const double longest = std::sqrt(std::max({norm2(ab), norm2(ac), norm2(bc)}));
+  t.tol = kRelTol * longest;
+  t.skip = t.id[0] == t.id[1] || t.id[1] == t.id[2] || t.id[0] == t.id[2] || !(len > 1e-12 * longest * longest);
+  if (!t.skip) {
+    for (double& x : t.n) x /= len;
+  }
+  return t;
+}
+
 /// findSelfIntersections on a mesh validateMesh has accepted.
 SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& options,
                                       const std::vector<std::int64_t>* faces) {
@@ -801,5 +847,40 @@ SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& opti
 }
 
 }  // namespace
+
+bool geom::trianglesMeet(const double* p, const std::int32_t* pid, const double* q, const std::int32_t* qid) {
+  const Tri s = preparedTri(p, pid), t = preparedTri(q, qid);
+  if (s.skip || t.skip) return false;
+  return pairIntersect(s, t, std::max(s.tol, t.tol));
+}
+
+bool geom::anyTrianglesMeet(const double* corners, const std::int32_t* ids, std::size_t n, std::size_t m) {
+  struct Prepared {
+    Tri t;
+    double lo[3], hi[3];
+  };
+  std::vector<Prepared> tris(n + m);
+  for (std::size_t i = 0; i < n + m; ++i) {
+    Prepared& x = tris[i];
+    x.t = preparedTri(corners + 9 * i, ids + 3 * i);
+    for (int c = 0; c < 3; ++c) {
+      x.lo[c] = std::min({x.t.p[c], x.t.p[3 + c], x.t.p[6 + c]});
+      x.hi[c] = std::max({x.t.p[c], x.t.p[3 + c], x.t.p[6 + c]});
+    }
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    const Prepared& s = tris[i];
+    if (s.t.skip) continue;
+    for (std::size_t j = i + 1; j < n + m; ++j) {
+      const Prepared& t = tris[j];
+      if (t.t.skip) continue;
+      const double tol = std::max(s.t.tol, t.t.tol);
+      bool apart = false;
+      for (int c = 0; c < 3; ++c) apart = apart || s.lo[c] > t.hi[c] + tol || t.lo[c] > s.hi[c] + tol;
+      if (!apart && pairIntersect(s.t, t.t, tol)) return true;
+    }
+  }
+  return false;
+}
 
 }  // namespace duplexfit

@@ -216,6 +216,25 @@ TEST_CASE("check: self-intersections of overlapping spheres and of triangle pair
     CHECK(intersections(soup({{{0, 0, 0, 2, 0, 0, 0, 2, 0}}, {{0.1, 0.1, 0, 0.5, 0.1, 0, 0.1, 0.5, 0}}})) == 1);
     CHECK(intersections(soup({{{0, 0, 0, 2, 0, 0, 0, 2, 0}}, {{2, 2, 0, 3, 2, 0, 2, 3, 0}}})) == 0);
   }
+  SUBCASE("nearly coplanar triangles side by side") {
+    // Two faces of cube_24k's zero mesh (float32, on the cube's face z = -0.5), one cell's diagonal apart:
+    // each has corners within the tolerance of the other's plane, but the planes are not the same, and
+    // their common line lay along the cells' row. The intervals on that line met; the faces do not.
+    const std::array<double, 9> a{-5.728974201701931e-07, 0.023436926305294037, -0.5000005960464478,
+                                  -7.550912073384097e-07, 0.02734375,           -0.5000007748603821,
+                                  0.00390625,             0.02734375,           -0.5000007748603821};
+    const std::array<double, 9> b{0.00390625,           0.02343691885471344,  -0.5000005960464478,
+                                  0.007811714429408312, 0.02734375,           -0.5000007748603821,
+                                  0.007811908610165119, 0.023436907678842545, -0.5000005960464478};
+    CHECK(intersections(soup({a, b})) == 0);
+    // The second moved by 1.5 cells along x: now they overlap.
+    std::array<double, 9> c = b;
+    for (int k = 0; k < 3; ++k) c[3 * k] -= 0.006;
+    CHECK(intersections(soup({a, c})) == 1);
+    // Planes at a tiny angle: a face lying just above the other, and one passing through it.
+    CHECK(intersections(soup({{{0, 0, 0, 2, 0, 0, 0, 2, 0}}, {{0.2, 0.2, 1e-9, 1, 0.2, 1e-9, 0.2, 1, 2e-9}}})) == 0);
+    CHECK(intersections(soup({{{0, 0, 0, 2, 0, 0, 0, 2, 0}}, {{0.2, 0.2, -1e-9, 1, 0.2, 1e-9, 0.2, 1, 1e-9}}})) == 1);
+  }
   SUBCASE("pairs sharing a vertex") {
     // Positions shared (soup vertices are separate indices, welded by position).
     CHECK(intersections(soup({{{0, 0, 0, 1, 0, 0, 0, 1, 0}}, {{0, 0, 0, -1, 0, 0, 0, 0, 1}}})) == 0);
