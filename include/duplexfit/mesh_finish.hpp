@@ -39,6 +39,9 @@ struct CleanReport {
   std::size_t collapses = 0;        ///< edges collapsed
   std::size_t refusedTopology = 0;  ///< collapses refused: the mesh would stop being a closed 2-manifold there
   std::size_t refusedGeometry = 0;  ///< collapses refused: a triangle would flip, turn too far or degenerate
+  /// Collapses refused because a surviving triangle would touch or cross one around it (tested where the
+  /// triangles turn more than 60 degrees from the local normal: creases, tips, thin fins).
+  std::size_t refusedCrossing = 0;
   std::size_t flips = 0;            ///< cap edges flipped
   std::size_t lockedVertices = 0;   ///< on a boundary or non-manifold edge or vertex: never moved
   std::size_t float32DegenerateBefore = 0, float32DegenerateAfter = 0;

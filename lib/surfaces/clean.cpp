@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <functional>
 #include <iterator>
+#include <limits>
 #include <queue>
 #include <tuple>
 #include <vector>
@@ -18,6 +19,7 @@
 #include "duplexfit/error.hpp"
 #include "duplexfit/measure.hpp"
 #include "duplexfit/mesh_finish.hpp"
+#include "measure/geometry.hpp"
 #include "surfaces/collapse.hpp"
 
 namespace duplexfit {
@@ -28,6 +30,10 @@ using Vec = Eigen::Vector3d;
 using Tri = std::array<int, 3>;
 
 double cosDegrees(double degrees) { return std::cos(degrees * M_PI / 180.0); }
+
+/// A collapse whose surviving faces turn more than 60 degrees from the local normal (cosine below this)
+/// is tested for crossings with the faces around it (Cleaner::crossesNearby).
+constexpr double kSharpCos = 0.5;
 
 /// Whether the triangle has an interior angle above the one whose cosine is cosCap (an angle in (90, 180)
 /// degrees), and its corner. Only the corner opposite the longest edge can hold an angle above 90 degrees, so
@@ -472,22 +478,75 @@ class Cleaner {
     const Vec defaults[3] = {0.5 * (pos(a) + pos(b)), pos(a), pos(b)};
     const Vec* first = positions ? positions->data() : defaults;
     const Vec* last = positions ? positions->data() + positions->size() : defaults + 3;
+    bool crossed = false;
     for (const Vec* at = first; at != last; ++at) {
       const Vec& q = *at;
-      if (!geometryOk(ring, a, b, q, ringNormal)) continue;
+      double leastCos = 1.0;
+      if (!geometryOk(ring, a, b, q, ringNormal, leastCos)) continue;
+      // Where the surviving faces turn far from the local normal (a sharp crease, a tip, a thin fin), a
+      // collapse can fold the surface through itself without any one face flipping: there they are tested
+      // against the faces around them.
+      if (leastCos < kSharpCos && crossesNearby(ring, a, b, q, shared)) {
+        crossed = true;
+        continue;
+      }
       apply(a, b, q, shared);
       ++report.collapses;
       return true;
     }
-    ++report.refusedGeometry;
+    ++(crossed ? report.refusedCrossing : report.refusedGeometry);
     return false;
   }
 
   Vec normal(const Tri& t) const { return (pos(t[1]) - pos(t[0])).cross(pos(t[2]) - pos(t[0])); }
 
-  /// Moving a and b to q keeps every surviving face well formed and facing the same way.
-  bool geometryOk(const std::vector<int>& ring, int a, int b, const Vec& q, const Vec& ringNormal) const {
+  /// Whether a surviving face (in `ring`, with a and b at q) touches or crosses a face around it: another
+  /// surviving face or one with a corner on a surviving face (the two faces on the edge go).
+  bool crossesNearby(const std::vector<int>& ring, int a, int b, const Vec& q, const int* shared) {
+    if (stamp_.size() != f_.size()) stamp_.assign(f_.size(), 0);
+    if (stampNow_ > std::numeric_limits<unsigned>::max() - 2) {
+      std::fill(stamp_.begin(), stamp_.end(), 0U);
+      stampNow_ = 0;
+    }
+    const unsigned inRing = ++stampNow_, seen = ++stampNow_;
+    for (int f : ring) stamp_[static_cast<std::size_t>(f)] = inRing;
+    std::vector<int>& around = scratchAround_;
+    around.clear();
+    for (int f : ring) {
+      for (int v : f_[static_cast<std::size_t>(f)]) {
+        for (int g : vf_[static_cast<std::size_t>(v == b ? a : v)]) {
+          const auto gi = static_cast<std::size_t>(g);
+          if (g == shared[0] || g == shared[1] || stamp_[gi] == inRing || stamp_[gi] == seen) continue;
+          stamp_[gi] = seen;
+          around.push_back(g);
+        }
+      }
+    }
+    // The surviving faces (a and b at q, b renamed a), then the faces around them.
+    std::vector<double>& p = scratchCorners_;
+    std::vector<std::int32_t>& id = scratchIds_;
+    p.clear();
+    id.clear();
+    const auto add = [&](int f) {
+      for (int v : f_[static_cast<std::size_t>(f)]) {
+        const bool moved = v == a || v == b;
+        const Vec& x = moved ? q : pos(v);
+        p.insert(p.end(), {x[0], x[1], x[2]});
+        id.push_back(moved ? a : v);
+      }
+    };
+    for (int f : ring) add(f);
+    for (int g : around) add(g);
+    return geom::anyTrianglesMeet(p.data(), id.data(), ring.size(), around.size());
+  }
+
+  /// Moving a and b to q keeps every surviving face well formed and facing the same way; leastCos receives
+  /// the least cosine of a surviving face's normal with the ring's (−1 when that is zero).
+  bool geometryOk(const std::vector<int>& ring, int a, int b, const Vec& q, const Vec& ringNormal,
+                  double& leastCos) const {
     const double maxCos = cosDegrees(o_.maxNormalChange);
+    const double ringLength = ringNormal.norm();
+    leastCos = ringLength > 0.0 ? 1.0 : -1.0;
     for (int f : ring) {
       const Tri& t = f_[static_cast<std::size_t>(f)];
       Vec before[3], after[3];
@@ -508,6 +567,7 @@ class Cleaner {
       } else if (!(na.dot(nb) >= maxCos * la * lb)) {
         return false;
       }
+      if (ringLength > 0.0) leastCos = std::min(leastCos, na.dot(ringNormal) / (la * ringLength));
     }
     return true;
   }
@@ -641,6 +701,12 @@ class Cleaner {
   std::vector<char> alive_, locked_;
   std::vector<std::vector<int>> vf_;
   std::vector<int> scratchA_, scratchB_, scratchCommon_, scratchRing_;  ///< tryCollapse's, reused
+  std::vector<int> scratchAround_;                                      ///< crossesNearby's, reused
+  std::vector<double> scratchCorners_;                                  ///< crossesNearby's, reused
+  std::vector<std::int32_t> scratchIds_;                                ///< crossesNearby's, reused
+  std::vector<unsigned> stamp_;                                         ///< crossesNearby's face marks
+  unsigned stampNow_ = 0;
+
   std::vector<Tri> scratchKeys_;
   mutable std::vector<std::pair<int, int>> scratchFan_;  ///< closedFan's (next, previous) per face
 };

@@ -336,6 +336,7 @@ void addClean(CleanReport& into, const CleanReport& more) {
   into.collapses += more.collapses;
   into.refusedTopology += more.refusedTopology;
   into.refusedGeometry += more.refusedGeometry;
+  into.refusedCrossing += more.refusedCrossing;
   into.flips += more.flips;
   into.verticesAfter = more.verticesAfter;
   into.facesAfter = more.facesAfter;

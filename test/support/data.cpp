@@ -20,6 +20,10 @@ std::string findSharedData() {
 
 std::string repoDataDir() { return (fs::path(DUPLEXFIT_SOURCE_DIR) / "data").lexically_normal().string(); }
 
+std::string repoTestDataDir() {
+  return (fs::path(DUPLEXFIT_SOURCE_DIR) / "test" / "data").lexically_normal().string();
+}
+
 bool ciRun() {
   const char* ci = std::getenv("CI");
   return ci != nullptr && std::string(ci) == "true";

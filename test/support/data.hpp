@@ -20,6 +20,9 @@ std::string findSharedData();
 /// The repository's data/ folder (the small example clouds).
 std::string repoDataDir();
 
+/// The repository's test/data/ folder (small meshes of regression tests; test/data/README.md).
+std::string repoTestDataDir();
+
 /// Whether this is a CI run (CI=true): missing shared data then fails instead of skipping.
 bool ciRun();
 

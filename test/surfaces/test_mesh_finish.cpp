@@ -18,6 +18,7 @@
 #include "duplexfit/mesh_finish.hpp"
 #include "duplexfit/polygonize.hpp"
 #include "duplexfit/surfaces.hpp"
+#include "data.hpp"
 #include "skip.hpp"
 #include "surfaces/collapse.hpp"
 #include "temp_dir.hpp"
@@ -128,6 +129,26 @@ TEST_CASE("cleaning keeps a marching-tetrahedra sphere watertight and removes ev
   CHECK(stl.valid());
   writeMesh(dir.file("raw.stl"), raw);
   CHECK_FALSE(checkMesh(readMesh(dir.file("raw.stl"))).valid());
+}
+
+TEST_CASE("cleaning does not fold a sharp tip through itself") {
+  // A patch of a raw offset mesh (test/data/README.md) where collapsing a short edge at its midpoint makes
+  // a surviving face cross others around it although none turns more than 60 degrees; the cleaning then
+  // takes another position or leaves the edge.
+  const Mesh raw = readMesh(testing::repoTestDataDir() + "/wheel29k_offset_fold.ply");
+  REQUIRE(raw.faces.rows() == 431);
+  REQUIRE(checkMesh(raw).selfIntersections == 0);
+  for (const double length : {5e-4, 7.8117e-4, 1e-3, 2e-3}) {
+    CAPTURE(length);
+    CleanOptions options;
+    options.collapseLength = length;
+    const CleanResult cleaned = cleanMesh(raw, options);
+    CHECK(cleaned.report.collapses > 50);
+    const MeshCheck c = checkMesh(cleaned.mesh);
+    CHECK(c.selfIntersections == 0);
+    CHECK(c.topology.eulerCharacteristic == analyzeTopology(raw).eulerCharacteristic);
+    CHECK(c.boundaryLoops == checkMesh(raw).boundaryLoops);
+  }
 }
 
 TEST_CASE("cleaning: an open mesh keeps its boundary; bad options are rejected") {
