@@ -261,7 +261,8 @@ int cmdFit(int argc, char** argv) {
     const MeshTopology& t = result.surfaces[i].topology;
     std::cout << "  " << (dir / meshNames[i]).string() << (o.separate && i > 0 ? "  offset " : "  iso ")
               << result.surfaces[i].offset << ": " << t.faces << " triangles, " << t.components << " component(s), "
-              << (t.watertight() && t.manifold() ? "watertight 2-manifold" : "NOT watertight/manifold") << "\n";
+              << (t.watertight() && t.manifold() ? "watertight 2-manifold" : "NOT watertight/manifold")
+              << crossingNote(result.surfaces[i].finish.project) << "\n";
   }
   if (result.shell) {
     const ShellReport& s = result.shell->report;

@@ -74,7 +74,8 @@ int cmdMesh(int argc, char** argv) {
   }
   const MeshTopology& t = r.topology;
   std::cout << out << ": iso " << iso << ", " << t.faces << " triangles, " << t.components << " component(s), "
-            << (t.watertight() && t.manifold() ? "watertight 2-manifold" : "NOT watertight/manifold");
+            << (t.watertight() && t.manifold() ? "watertight 2-manifold" : "NOT watertight/manifold")
+            << crossingNote(r.finish.project);
   if (r.finish.deviationMeasured) {
     std::cout << ", deviation from the level set " << r.finish.deviation.max << " ("
               << 100.0 * r.finish.deviation.relativeMax << "% of the largest side)";

@@ -137,6 +137,8 @@ void addFinishReport(Json& m, const MeshFinishReport& f) {
                          {"centres_evaluated", p.centresEvaluated},
                          {"centres_predicted", p.centresPredicted},
                          {"self_intersections_found", p.selfIntersectionsFound},
+                         {"self_intersections_checked", p.selfIntersectionsChecked},
+                         {"self_intersections_left", p.selfIntersectionsLeft},
                          {"reverted", p.reverted},
                          {"seconds", p.seconds}};
   const NeckPassReport& n = f.neckPass;

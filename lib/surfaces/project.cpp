@@ -1,6 +1,7 @@
 // Moving an extracted mesh onto its level set: Newton projection of the vertices, then longest-edge splits
 // of the faces whose centre stays off it (docs/method.md §7, "Projection onto the level set").
 #include <algorithm>
+#include <numeric>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -500,24 +501,34 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
     std::vector<char> back(w.v.size(), 0);
     std::size_t reverted = 0;
     // A pair can only start (or keep) intersecting when one of its faces has a vertex that moved since.
-    // So round 0 asks about the faces with a vertex away from where the extraction put it (a pair of faces
-    // neither of which moved crosses on the extracted surface itself, which no undo changes), and each
-    // later round about the faces around the vertices the round before moved back (every pair of theirs,
-    // against the whole mesh).
-    std::vector<std::int64_t> asked;
+    // So only the pairs with a face that has a vertex away from where the extraction put it are undone (a
+    // pair of faces neither of which moved crosses on the extracted surface itself, which no undo
+    // changes), and each later round asks about the faces around the vertices the round before moved back
+    // (every pair of theirs, against the whole mesh). Round 0 asks about every face, so that the crossings
+    // left at the end are known: those it found and the faces of later rounds are asked about once more.
+    std::vector<char> movedFace(w.f.size(), 0);
     for (std::size_t face = 0; face < w.f.size(); ++face) {
       for (const Index vtx : w.f[face]) {
         if (w.v[static_cast<std::size_t>(vtx)] != w.extracted[static_cast<std::size_t>(vtx)]) {
-          asked.push_back(static_cast<std::int64_t>(face));
+          movedFace[face] = 1;
           break;
         }
       }
     }
+    std::vector<std::int64_t> asked(w.f.size());
+    std::iota(asked.begin(), asked.end(), std::int64_t{0});
+    std::vector<std::int64_t> again;  // the faces of the pairs found and of the later rounds
+    bool unasked = false;             // `asked` holds faces moved back after the last round's test
     for (int round = 0; round < 12 && !asked.empty(); ++round) {
+      unasked = false;
       const SelfIntersections c = findSelfIntersections(out.mesh, co, &asked);
-      if (round == 0) rep.selfIntersectionsFound = c.count;
+      if (round > 0) again.insert(again.end(), asked.begin(), asked.end());
       std::vector<Index> seeds;
       for (const auto& [x, y] : c.pairs) {
+        again.push_back(x);
+        again.push_back(y);
+        if (round == 0 && !movedFace[static_cast<std::size_t>(x)] && !movedFace[static_cast<std::size_t>(y)]) continue;
+        if (round == 0) ++rep.selfIntersectionsFound;
         for (const std::int64_t face : {x, y}) {
           for (const Index vtx : w.f[static_cast<std::size_t>(face)]) seeds.push_back(vtx);
         }
@@ -529,7 +540,9 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
           for (const Index vtx : t) seeds.push_back(vtx);
         }
       };
-      for (const std::int64_t face : asked) degenerate(static_cast<std::size_t>(face));
+      for (const std::int64_t face : asked) {
+        if (round > 0 || movedFace[static_cast<std::size_t>(face)]) degenerate(static_cast<std::size_t>(face));
+      }
       if (seeds.empty()) break;
       if (reverted == w.v.size()) break;  // the extracted surface itself (its own crossings are not ours)
       const bool all = round == 11;
@@ -562,8 +575,16 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
       std::sort(asked.begin(), asked.end());
       asked.erase(std::unique(asked.begin(), asked.end()), asked.end());
       write();
+      unasked = true;
     }
+    if (unasked) again.insert(again.end(), asked.begin(), asked.end());  // the last round's moves back
     rep.reverted = reverted;
+    rep.selfIntersectionsChecked = true;
+    if (!again.empty()) {
+      std::sort(again.begin(), again.end());
+      again.erase(std::unique(again.begin(), again.end()), again.end());
+      rep.selfIntersectionsLeft = findSelfIntersections(out.mesh, co, &again).count;
+    }
     // What moved back stands where nothing was evaluated (nor do the centres of its faces).
     if (reverted > 0) {
       for (std::size_t v = 0; v < w.v.size(); ++v) {

@@ -697,6 +697,9 @@ TEST_CASE("projection undoes the moves that make two sheets cross, testing only 
   checkSameDeviation(levelSetDeviation(sampler, p.mesh, 0.0, 1.0), levelSetDeviation(sampler, p.mesh, 0.0, 1.0, 0, &p.known));
   CHECK(p.report.reverted < static_cast<std::size_t>(m.vertices.rows()));
   CHECK(findSelfIntersections(p.mesh, all).count == 0);
+  CHECK(p.report.selfIntersectionsChecked);
+  CHECK(p.report.selfIntersectionsLeft == 0);
+  CHECK_FALSE(crossed.report.selfIntersectionsChecked);
   CHECK(checkMesh(p.mesh).quality.float32DegenerateFaces == 0);
   int farOnLevel = 0, far = 0;
   for (Eigen::Index v = 0; v < p.mesh.vertices.rows(); ++v) {
@@ -731,6 +734,9 @@ TEST_CASE("projection leaves crossings of the extracted surface alone: only what
   CHECK(p.report.reverted == 0);
   const SelfIntersections after = findSelfIntersections(p.mesh, all);
   CHECK(after.pairs == before.pairs);
+  // What is left is known and counted: the extracted surface's own pairs.
+  CHECK(p.report.selfIntersectionsChecked);
+  CHECK(p.report.selfIntersectionsLeft == before.count);
   int moved = 0;
   for (Eigen::Index v = 0; v < p.mesh.vertices.rows(); ++v) {
     CHECK(std::abs(p.mesh.vertices(v, 2) - 0.2) <= 1e-12);
