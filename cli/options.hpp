@@ -303,12 +303,11 @@ inline void checkOutputFolderName(const std::string& dir, const char* command) {
 /// The candidate nearest to `word` by edit distance (insertions, deletions, substitutions and swaps of
 /// neighbours), when it is close enough to be a typo: at most 1 edit for words up to 4 letters, 2 up to
 /// 8, 3 beyond; or a candidate that starts with `word` (an abbreviation). Empty when none is.
-/// What a finished mesh's summary line says of its self-intersections: nothing when the projection's undo
-/// did not test them (no projection), else none or how many pairs are left.
+/// What a finished mesh's summary line says of its self-intersections: the pairs the projection's undo
+/// left (with a face it moved or moved back), when there are any.
 inline std::string crossingNote(const duplexfit::ProjectReport& p) {
-  if (!p.selfIntersectionsChecked) return "";
-  if (p.selfIntersectionsLeft == 0) return ", no self-intersections";
-  return ", " + std::to_string(p.selfIntersectionsLeft) + " self-intersecting triangle pair(s)";
+  if (!p.selfIntersectionsChecked || p.selfIntersectionsLeft == 0) return "";
+  return ", " + std::to_string(p.selfIntersectionsLeft) + " self-intersecting triangle pair(s) left by the projection";
 }
 
 inline std::string nearestWord(const std::string& word, const std::vector<std::string>& candidates) {

@@ -222,9 +222,9 @@ struct ProjectReport {
   /// unmoved faces cross on the extracted mesh itself: no undo changes them, and they are not counted).
   std::size_t selfIntersectionsFound = 0;
   std::size_t reverted = 0;      ///< vertices moved back to the extracted surface by the undo
-  /// Whether the undo ran (undoSelfIntersections): the result's every face pair was then tested, and
-  /// selfIntersectionsLeft is the number of intersecting pairs it has (those of the extracted surface
-  /// included; 0 when the undo's rounds left none).
+  /// Whether the undo ran (undoSelfIntersections); selfIntersectionsLeft is then the number of intersecting
+  /// pairs the result has with a face that moved or moved back (pairs of unmoved faces, which cross on the
+  /// extracted surface itself, are not looked for).
   bool selfIntersectionsChecked = false;
   std::size_t selfIntersectionsLeft = 0;
   double seconds = 0.0;
