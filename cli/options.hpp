@@ -16,7 +16,6 @@
 #include "args.hpp"
 #include "duplexfit/error.hpp"
 #include "duplexfit/mesh_finish.hpp"
-#include "duplexfit/mesh_finish.hpp"
 #include "duplexfit/polygonize.hpp"
 #include "duplexfit/resources.hpp"
 #include "duplexfit/surfaces.hpp"
@@ -300,9 +299,6 @@ inline void checkOutputFolderName(const std::string& dir, const char* command) {
   }
 }
 
-/// The candidate nearest to `word` by edit distance (insertions, deletions, substitutions and swaps of
-/// neighbours), when it is close enough to be a typo: at most 1 edit for words up to 4 letters, 2 up to
-/// 8, 3 beyond; or a candidate that starts with `word` (an abbreviation). Empty when none is.
 /// What a finished mesh's summary line says of its self-intersections: the pairs the projection's undo
 /// left (with a face it moved or moved back), when there are any.
 inline std::string crossingNote(const duplexfit::ProjectReport& p) {
@@ -310,6 +306,9 @@ inline std::string crossingNote(const duplexfit::ProjectReport& p) {
   return ", " + std::to_string(p.selfIntersectionsLeft) + " self-intersecting triangle pair(s) left by the projection";
 }
 
+/// The candidate nearest to `word` by edit distance (insertions, deletions, substitutions and swaps of
+/// neighbours), when it is close enough to be a typo: at most 1 edit for words up to 4 letters, 2 up to
+/// 8, 3 beyond; or a candidate that starts with `word` (an abbreviation). Empty when none is.
 inline std::string nearestWord(const std::string& word, const std::vector<std::string>& candidates) {
   const auto distance = [](const std::string& a, const std::string& b) {
     std::vector<std::vector<std::size_t>> d(a.size() + 1, std::vector<std::size_t>(b.size() + 1));

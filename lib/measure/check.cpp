@@ -132,6 +132,26 @@ struct Tri {
   bool skip;         // degenerate
 };
 
+/// The triangle with corners p and vertex ids id, prepared for the pair tests (a mesh's face: FaceSource::tri).
+Tri preparedTri(const double* p, const std::int32_t* id) {
+  Tri t{};
+  std::copy(p, p + 9, t.p);
+  std::copy(id, id + 3, t.id);
+  double ab[3], ac[3], bc[3];
+  sub(t.p + 3, t.p, ab);
+  sub(t.p + 6, t.p, ac);
+  sub(t.p + 6, t.p + 3, bc);
+  cross(ab, ac, t.n);
+  const double len = std::sqrt(norm2(t.n));
+  const double longest = std::sqrt(std::max({norm2(ab), norm2(ac), norm2(bc)}));
+  t.tol = kRelTol * longest;
+  t.skip = t.id[0] == t.id[1] || t.id[1] == t.id[2] || t.id[0] == t.id[2] || !(len > 1e-12 * longest * longest);
+  if (!t.skip) {
+    for (double& x : t.n) x /= len;
+  }
+  return t;
+}
+
 /// The mesh's faces for the pair search, prepared when asked for from the mesh's own arrays: nothing is
 /// stored a face (a table of prepared triangles took 128 bytes a face, fresh memory on every call).
 struct FaceSource {
@@ -163,18 +183,14 @@ struct FaceSource {
     sub(p + 6, p + 3, bc);
     return kRelTol * std::sqrt(std::max({norm2(ab), norm2(ac), norm2(bc)}));
   }
-  Tri tri(std::size_t i) const;
+  Tri tri(std::size_t i) const {
+    double p[9];
+    std::int32_t id[3];
+    corners(i, p);
+    for (std::size_t k = 0; k < 3; ++k) id[k] = welded[static_cast<std::size_t>(f[3 * i + k])];
+    return preparedTri(p, id);
+  }
 };
-
-Tri preparedTri(const double* p, const std::int32_t* id);
-
-Tri FaceSource::tri(std::size_t i) const {
-  double p[9];
-  std::int32_t id[3];
-  corners(i, p);
-  for (std::size_t k = 0; k < 3; ++k) id[k] = welded[static_cast<std::size_t>(f[3 * i + k])];
-  return preparedTri(p, id);
-}
 
 /// Distances of q's corners to the plane (unit normal n through a), snapped to 0 within tol.
 void planeDistances(const double* q, const double* n, const double* a, double tol, double* d) {
@@ -663,26 +679,6 @@ std::vector<std::int64_t> nearAsked(const FaceSource& faces, const std::vector<c
   return out;
 }
 
-/// The triangle with corners p and vertex ids id, prepared as FaceSource::tri prepares a face.
-Tri preparedTri(const double* p, const std::int32_t* id) {
-  Tri t{};
-  std::copy(p, p + 9, t.p);
-  std::copy(id, id + 3, t.id);
-  double ab[3], ac[3], bc[3];
-  sub(t.p + 3, t.p, ab);
-  sub(t.p + 6, t.p, ac);
-  sub(t.p + 6, t.p + 3, bc);
-  cross(ab, ac, t.n);
-  const double len = std::sqrt(norm2(t.n));
-  const double longest = std::sqrt(std::max({norm2(ab), norm2(ac), norm2(bc)}));
-  t.tol = kRelTol * longest;
-  t.skip = t.id[0] == t.id[1] || t.id[1] == t.id[2] || t.id[0] == t.id[2] || !(len > 1e-12 * longest * longest);
-  if (!t.skip) {
-    for (double& x : t.n) x /= len;
-  }
-  return t;
-}
-
 /// findSelfIntersections on a mesh validateMesh has accepted.
 SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& options,
                                       const std::vector<std::int64_t>* faces) {
@@ -847,12 +843,6 @@ SelfIntersections selfIntersectionsOf(const Mesh& mesh, const CheckOptions& opti
 }
 
 }  // namespace
-
-bool geom::trianglesMeet(const double* p, const std::int32_t* pid, const double* q, const std::int32_t* qid) {
-  const Tri s = preparedTri(p, pid), t = preparedTri(q, qid);
-  if (s.skip || t.skip) return false;
-  return pairIntersect(s, t, std::max(s.tol, t.tol));
-}
 
 bool geom::anyTrianglesMeet(const double* corners, const std::int32_t* ids, std::size_t n, std::size_t m) {
   struct Prepared {

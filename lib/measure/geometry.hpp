@@ -32,15 +32,12 @@ inline double dist2(const double* a, const double* b) {
 double closestOnTriangle(const double* q, const double* tri, double* point, TriangleFeature& feature,
                          int& local);
 
-/// Whether triangles p and q (9 doubles each) touch or cross beyond the corners they share, decided as the
-/// self-intersection test decides a pair: corners with equal ids (pid, qid: 3 each) are the same vertex;
-/// the tolerance is 1e-10 of the longer longest edge. False when either is degenerate (a repeated id, or
-/// no area), which that test skips.
-bool trianglesMeet(const double* p, const std::int32_t* pid, const double* q, const std::int32_t* qid);
-
-/// Whether any two of the first `n` triangles, or one of them and one of the other `m`, meet as
-/// trianglesMeet decides (corners: 9 doubles a triangle, ids: 3 a triangle; the n first, then the m
-/// others). Each triangle is prepared once; pairs whose boxes are apart are not tested.
+/// Whether any two of the first `n` triangles, or one of them and one of the other `m`, touch or cross
+/// beyond the corners they share, decided as the self-intersection test decides a pair: corners with
+/// equal ids are the same vertex, the tolerance is 1e-10 of the longer longest edge, and a degenerate
+/// triangle (a repeated id, or no area) meets nothing. Corners: 9 doubles a triangle, ids: 3 a triangle,
+/// the n first, then the m others. Each triangle is prepared once; pairs whose boxes are apart are not
+/// tested.
 bool anyTrianglesMeet(const double* corners, const std::int32_t* ids, std::size_t n, std::size_t m);
 
 /// Whether a triangle is degenerate for the closest-point test: |ab × ac|² ≤ 1e-24 · |ab|² · |ac|²

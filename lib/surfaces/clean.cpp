@@ -706,7 +706,6 @@ class Cleaner {
   std::vector<std::int32_t> scratchIds_;                                ///< crossesNearby's, reused
   std::vector<unsigned> stamp_;                                         ///< crossesNearby's face marks
   unsigned stampNow_ = 0;
-
   std::vector<Tri> scratchKeys_;
   mutable std::vector<std::pair<int, int>> scratchFan_;  ///< closedFan's (next, previous) per face
 };
