@@ -8,7 +8,6 @@
 #include <cstdint>
 #include <functional>
 #include <iterator>
-#include <limits>
 #include <queue>
 #include <tuple>
 #include <vector>
@@ -503,25 +502,25 @@ class Cleaner {
   /// Whether a surviving face (in `ring`, with a and b at q) touches or crosses a face around it: another
   /// surviving face or one with a corner on a surviving face (the two faces on the edge go).
   bool crossesNearby(const std::vector<int>& ring, int a, int b, const Vec& q, const int* shared) {
-    if (stamp_.size() != f_.size()) stamp_.assign(f_.size(), 0);
-    if (stampNow_ > std::numeric_limits<unsigned>::max() - 2) {
-      std::fill(stamp_.begin(), stamp_.end(), 0U);
-      stampNow_ = 0;
-    }
-    const unsigned inRing = ++stampNow_, seen = ++stampNow_;
-    for (int f : ring) stamp_[static_cast<std::size_t>(f)] = inRing;
+    // The faces with a corner on a surviving face, less the surviving ones and the two that go (a few dozen:
+    // sorted and deduplicated in place).
     std::vector<int>& around = scratchAround_;
     around.clear();
     for (int f : ring) {
       for (int v : f_[static_cast<std::size_t>(f)]) {
         for (int g : vf_[static_cast<std::size_t>(v == b ? a : v)]) {
-          const auto gi = static_cast<std::size_t>(g);
-          if (g == shared[0] || g == shared[1] || stamp_[gi] == inRing || stamp_[gi] == seen) continue;
-          stamp_[gi] = seen;
-          around.push_back(g);
+          if (g != shared[0] && g != shared[1]) around.push_back(g);
         }
       }
     }
+    std::sort(around.begin(), around.end());
+    around.erase(std::unique(around.begin(), around.end()), around.end());
+    std::vector<int>& sortedRing = scratchSortedRing_;
+    sortedRing.assign(ring.begin(), ring.end());
+    std::sort(sortedRing.begin(), sortedRing.end());
+    around.erase(std::remove_if(around.begin(), around.end(),
+                                [&](int g) { return std::binary_search(sortedRing.begin(), sortedRing.end(), g); }),
+                 around.end());
     // The surviving faces (a and b at q, b renamed a), then the faces around them.
     std::vector<double>& p = scratchCorners_;
     std::vector<std::int32_t>& id = scratchIds_;
@@ -701,11 +700,9 @@ class Cleaner {
   std::vector<char> alive_, locked_;
   std::vector<std::vector<int>> vf_;
   std::vector<int> scratchA_, scratchB_, scratchCommon_, scratchRing_;  ///< tryCollapse's, reused
-  std::vector<int> scratchAround_;                                      ///< crossesNearby's, reused
+  std::vector<int> scratchAround_, scratchSortedRing_;                  ///< crossesNearby's, reused
   std::vector<double> scratchCorners_;                                  ///< crossesNearby's, reused
   std::vector<std::int32_t> scratchIds_;                                ///< crossesNearby's, reused
-  std::vector<unsigned> stamp_;                                         ///< crossesNearby's face marks
-  unsigned stampNow_ = 0;
   std::vector<Tri> scratchKeys_;
   mutable std::vector<std::pair<int, int>> scratchFan_;  ///< closedFan's (next, previous) per face
 };

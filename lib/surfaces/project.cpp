@@ -516,13 +516,10 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
         }
       }
     }
-    std::vector<std::int64_t> again;  // the faces of the pairs found and of the later rounds
-    bool unasked = false;             // `asked` holds faces moved back after the last round's test
+    std::vector<std::int64_t> again;  // the faces of the pairs found and around what moved back
     for (int round = 0; round < 12 && !asked.empty(); ++round) {
-      unasked = false;
       const SelfIntersections c = findSelfIntersections(out.mesh, co, &asked);
       if (round == 0) rep.selfIntersectionsFound = c.count;
-      if (round > 0) again.insert(again.end(), asked.begin(), asked.end());
       std::vector<Index> seeds;
       for (const auto& [x, y] : c.pairs) {
         again.push_back(x);
@@ -570,10 +567,9 @@ ProjectResult projectToLevelSet(const FieldGradientSampler& sampler, const Mesh&
       if (asked.empty()) break;
       std::sort(asked.begin(), asked.end());
       asked.erase(std::unique(asked.begin(), asked.end()), asked.end());
+      again.insert(again.end(), asked.begin(), asked.end());
       write();
-      unasked = true;
     }
-    if (unasked) again.insert(again.end(), asked.begin(), asked.end());  // the last round's moves back
     rep.reverted = reverted;
     rep.selfIntersectionsChecked = true;
     if (!again.empty()) {
