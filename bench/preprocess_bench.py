@@ -115,9 +115,9 @@ def main():
                 normals_rows.append((cloud, device, s, extra))
 
     print("duplexfit pre-processing benchmark (precision %s, best of %d)" % (args.precision, args.repeat))
-    table("denoise (bilateral filter, one pass; 'neighbors' = FLANN on the host, 'filter' = weighted sums "
+    table("denoise (bilateral filter, one pass; 'neighbors' = the k-d tree on the host, 'filter' = weighted sums "
           "incl. transfers)", DENOISE_STAGES, denoise_rows, "notes")
-    table("normals (k = 15; 'neighbors' = FLANN kNN, 'pca' = covariances on the device + host eigenvectors, "
+    table("normals (k = 15; 'neighbors' = k-d tree kNN, 'pca' = covariances on the device + host eigenvectors, "
           "'orient' = graph, MST, outward test)", NORMALS_STAGES, normals_rows, "notes")
     return 0
 

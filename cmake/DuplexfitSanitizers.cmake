@@ -7,7 +7,7 @@ function(duplexfit_set_sanitizers target)
     target_compile_options(${target} PRIVATE -fsanitize=${_list} -fno-omit-frame-pointer
                                              -fno-sanitize-recover=undefined)
     # A Debug build (-O0) gets -O1: the AddressSanitizer documentation recommends it "to get reasonable
-    # performance". At -O0 the header templates we instantiate (FLANN, Eigen) and the meshing loops ran the
+    # performance". At -O0 the header templates we instantiate (Eigen) and the meshing loops ran the
     # sanitizer suite past CI's 90 minutes; -O1 keeps assertions, frames and every sanitizer check.
     target_compile_options(${target} PRIVATE $<$<CONFIG:Debug>:-O1>)
     target_link_options(${target} PRIVATE -fsanitize=${_list})

@@ -9,7 +9,6 @@ packages=(
   ocl-icd-opencl-dev                   # the OpenCL ICD loader (libOpenCL)
   pocl-opencl-icd                      # PoCL: the CPU OpenCL device the tests run on
   libeigen3-dev                        # Eigen: host linear algebra and the reference solver
-  libflann-dev liblz4-dev              # FLANN k-d tree (neighbour queries); lz4 is linked by its headers
   doctest-dev                          # unit tests
   libpng-dev                           # PNG output (section pictures, slice masks)
   nlohmann-json3-dev                   # JSON: report.json and --json output, parsed by the tests (header-only)

@@ -1,4 +1,4 @@
-// Fixed-radius and k-nearest neighbour queries over a point set (FLANN k-d tree behind a PImpl), with
+// Fixed-radius and k-nearest neighbour queries over a point set (a k-d tree of our own behind a PImpl), with
 // sorted, deterministic results: the sparsity pattern of every Wendland system comes from here.
 #pragma once
 

@@ -1,6 +1,6 @@
 // Point-cloud pre-processing before a fit: the bilateral point filter of docs/method.md §9 (denoising),
 // and normal estimation with consistent outward orientation for clouds that carry no normals.
-// Neighbour queries run on the host (FLANN); the per-point sums run as OpenCL kernels on the device, or as
+// Neighbour queries run on the host (NeighborIndex's k-d tree); the per-point sums run as OpenCL kernels on the device, or as
 // the same loops in C++ on the reference device.
 #pragma once
 
@@ -62,7 +62,7 @@ struct BilateralReport {
   std::size_t moved = 0;            ///< points that moved by more than 1e-9·L in total
   double maxDisplacement = 0.0;     ///< input units, over all passes (‖output − input‖)
   double meanDisplacement = 0.0;
-  double neighborSeconds = 0.0;     ///< FLANN builds and radius queries (host)
+  double neighborSeconds = 0.0;     ///< k-d tree builds and radius queries (host)
   double filterSeconds = 0.0;       ///< weighted sums, including transfers
   double seconds = 0.0;             ///< everything
 };
@@ -115,7 +115,7 @@ struct NormalReport {
   std::size_t degenerate = 0;        ///< neighbourhoods with no plane (collinear): the normal is zero
   std::size_t nonPlanar = 0;         ///< surface variation λ0/(λ0+λ1+λ2) > 0.1 (corners, noise)
   double minVolumeRatio = 0.0;       ///< smallest |enclosed-volume ratio| over decided components (1 = sphere)
-  double neighborSeconds = 0.0;      ///< FLANN build and kNN query
+  double neighborSeconds = 0.0;      ///< k-d tree build and kNN query
   double pcaSeconds = 0.0;           ///< covariance sums (device) and eigenvectors (host)
   double orientSeconds = 0.0;        ///< graph, spanning-tree propagation and outward test
   double seconds = 0.0;

@@ -1,5 +1,5 @@
 // Offset and off-surface points with the validity test of docs/method.md §3.1–§3.2, and the merge of
-// near-duplicate centres (§3.5), using the FLANN-backed NeighborIndex.
+// near-duplicate centres (§3.5), using NeighborIndex.
 #include "fit/constraints.hpp"
 
 #include <algorithm>

@@ -1,5 +1,5 @@
 // The bilateral point filter of docs/method.md §9 (after Jones, Durand and Desbrun 2003): parameters from
-// the spec's rules, neighbourhoods from FLANN on the host packed as CSR lists, and the weighted sums on
+// the spec's rules, neighbourhoods from the k-d tree (NeighborIndex) on the host packed as CSR lists, and the weighted sums on
 // the device (kernels/preprocess.cl bilateral_filter) or its C++ twin.
 #include <algorithm>
 #include <chrono>

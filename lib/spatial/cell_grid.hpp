@@ -4,7 +4,7 @@
 // system's assembly: radius σ, cells of σ; the merge of near-duplicate centres: radius σ/100 in the same
 // cells) a query reads 9 runs or fewer, with no tree to build or descend.
 //
-// The distance is computed as FLANN's L2_3D does it (the query minus the point, squares summed in x, y,
+// The distance is computed as NeighborIndex (and FLANN's L2_3D before it) does it (the query minus the point, squares summed in x, y,
 // z order, then the square root) and a point is a hit when that distance is < radius, as in
 // NeighborIndex::radiusSearch: the two return the same points with the same distances.
 #pragma once
@@ -108,7 +108,7 @@ class CellGrid {
   static double sureBelow(double radius) noexcept { return radius * radius * (1.0 - 1e-12); }
 
  private:
-  /// The squared distance from q to sorted point k, as FLANN's L2_3D sums it.
+  /// The squared distance from q to sorted point k, as NeighborIndex sums it.
   double squaredTo(const double* q, std::uint32_t k) const noexcept {
     const double* p = xyz_.data() + 3 * static_cast<std::size_t>(k);
     const double dx = q[0] - p[0], dy = q[1] - p[1], dz = q[2] - p[2];

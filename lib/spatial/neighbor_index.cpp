@@ -1,6 +1,7 @@
-// NeighborIndex: exact radius and k-nearest queries over a FLANN single k-d tree (header-only use),
-// hidden behind a PImpl. Queries run in parallel blocks (OpenMP) with our own result sets, so that
-// results are deterministic: sorted by (Euclidean distance, index), ties broken by index.
+// NeighborIndex: exact radius and k-nearest queries over a k-d tree of our own (3D only, result sets as
+// template parameters: no virtual call per point or node), hidden behind a PImpl. Queries run in parallel
+// blocks (OpenMP), so that results are deterministic: sorted by (Euclidean distance, index), ties broken by
+// index.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -13,14 +14,6 @@
 
 #include "duplexfit/neighbors.hpp"
 
-// FLANN's pool allocator may return null in theory, which GCC's -Wnull-dereference reports from the
-// inlined tree construction even though the header is a system header.
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wnull-dereference"
-#include <flann/algorithms/dist.h>
-#include <flann/algorithms/kdtree_single_index.h>
-#pragma GCC diagnostic pop
-
 #include "duplexfit/error.hpp"
 #include "parallel/omp_threads.hpp"
 #include "spatial/morton.hpp"
@@ -30,8 +23,6 @@
 namespace duplexfit {
 
 namespace {
-
-using Tree = flann::KDTreeSingleIndex<flann::L2_3D<double>>;
 
 /// Queries per parallel work item: large enough to amortise scheduling, small enough to balance.
 constexpr std::int64_t kQueryBlock = 512;
@@ -43,11 +34,12 @@ constexpr double kMaxReserveHits = 64.0 * 1024 * 1024;
 /// thread's share of a few 10k-query chunks of ~45 results.
 constexpr std::size_t kRetainHits = std::size_t{1} << 20;
 
-/// Leaf size of the k-d tree: for radius queries of ~45 results, 24–64 measured ~10% faster than
-/// FLANN's default of 10, and larger leaves cost small-radius and k = 1 queries more.
-constexpr int kLeafSize = 24;
+/// Leaf size of the k-d tree (points): for radius queries of ~45 results, 24–64 measured ~10% faster than
+/// 10 (FLANN's default, when this index was FLANN's), and larger leaves cost small-radius and k = 1 queries
+/// more; 12 to 32 take the same time on fandisk_550k's queries.
+constexpr std::uint32_t kLeafSize = 24;
 
-/// Relative slack on squared bounds handed to FLANN. FLANN prunes and filters on squared distances
+/// Relative slack on the squared bounds of the result sets. The tree prunes and filters on squared distances
 /// (‖p − q‖² < bound) while we decide on the rounded Euclidean distance; the slack makes sure no
 /// candidate that passes our test is pruned by rounding in the tree's incremental box distances.
 constexpr double kSquaredSlack = 1e-9;
@@ -62,7 +54,7 @@ inline bool hitLess(const Hit& a, const Hit& b) noexcept {
   return a.distance < b.distance || (a.distance == b.distance && a.index < b.index);
 }
 
-/// The squared bound to give FLANN so that every point with distance ≤ d passes its tests.
+/// The squared bound to give the tree so that every point with distance ≤ d passes its tests.
 inline double squaredBound(double d) noexcept {
   return std::nextafter(d * d * (1.0 + kSquaredSlack), std::numeric_limits<double>::infinity());
 }
@@ -81,15 +73,14 @@ void checkFinite(const Points& points, const char* what) {
 }
 
 /// Collects every point with rounded Euclidean distance < radius (strict), unsorted.
-class RadiusCollector final : public flann::ResultSet<double> {
+class RadiusCollector {
  public:
   explicit RadiusCollector(double radius) : radius_(radius), bound_(squaredBound(radius)) {}
   void reset(std::vector<Hit>* out) noexcept { out_ = out; }
-  bool full() const override { return true; }
-  double worstDist() const override { return bound_; }
-  void addPoint(double squared, size_t index) override {
+  double worstDist() const { return bound_; }
+  void addPoint(double squared, Index index) {
     const double d = std::sqrt(squared);
-    if (d < radius_) out_->push_back(Hit{d, static_cast<Index>(index)});
+    if (d < radius_) out_->push_back(Hit{d, index});
   }
 
  private:
@@ -102,7 +93,7 @@ class RadiusCollector final : public flann::ResultSet<double> {
 /// result does not depend on the tree's visiting order. For k ≤ kSortedK the hits are kept sorted and a new
 /// one is inserted by shifting the larger ones up (1.3x faster than a heap's sifts for the fit's k = 12–13
 /// searches, docs/benchmarks.md); larger k keep a max-heap.
-class KnnCollector final : public flann::ResultSet<double> {
+class KnnCollector {
  public:
   static constexpr std::size_t kSortedK = 32;
   /// `initialBound`: squared distance beyond which no point is taken (the search prunes there).
@@ -114,10 +105,9 @@ class KnnCollector final : public flann::ResultSet<double> {
     hits_.clear();
     bound_ = initialBound_;
   }
-  bool full() const override { return hits_.size() == k_; }
-  double worstDist() const override { return bound_; }
-  void addPoint(double squared, size_t index) override {
-    const Hit h{std::sqrt(squared), static_cast<Index>(index)};
+  double worstDist() const { return bound_; }
+  void addPoint(double squared, Index index) {
+    const Hit h{std::sqrt(squared), index};
     if (k_ <= kSortedK) {
       std::size_t j = hits_.size();
       if (j == k_) {
@@ -156,6 +146,156 @@ class KnnCollector final : public flann::ResultSet<double> {
   double bound_;
 };
 
+/// The k-d tree: median splits on the axis of the largest extent down to leaves of at most kLeafSize points,
+/// the points copied in leaf order. The search is the classic one for exact nearest neighbours (Arya and
+/// Mount's incremental distance to the cell, as FLANN's single-tree index does it): the nearer child first,
+/// the other only when the squared distance to its cell does not exceed the result set's bound. The result
+/// set is a template parameter, so neither the per-point test nor the bound is a virtual call (FLANN's
+/// ResultSet made both virtual: 15% of fandisk_550k's fit samples were its search and its callbacks).
+/// Squared distances are summed as FLANN's L2_3D does ((q − p)ₓ² + (q − p)ᵧ², then + (q − p)𝓏²), so every
+/// distance is the one the FLANN index gave (the fields and meshes of fandisk_550k, wheel_118k and wheel_29k
+/// came out byte for byte the same).
+class KdTree {
+ public:
+  KdTree(const double* xyz, std::size_t n) {
+    if (n == 0) return;
+    // The points with their rows, sorted in place by the splits (the comparisons read the coordinates
+    // directly, not through an index).
+    std::vector<Slot> slots(n);
+    for (int c = 0; c < 3; ++c) {
+      lo_[c] = HUGE_VAL;
+      hi_[c] = -HUGE_VAL;
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      for (std::size_t c = 0; c < 3; ++c) {
+        slots[i].p[c] = xyz[3 * i + c];
+        lo_[c] = std::min(lo_[c], slots[i].p[c]);
+        hi_[c] = std::max(hi_[c], slots[i].p[c]);
+      }
+      slots[i].id = static_cast<Index>(i);
+    }
+    nodes_.reserve(2 * (n / (kLeafSize / 2) + 1));
+    build(slots.data(), 0, static_cast<std::uint32_t>(n), lo_, hi_);
+    pts_.resize(3 * n);
+    ids_.resize(n);
+    for (std::size_t k = 0; k < n; ++k) {
+      for (std::size_t c = 0; c < 3; ++c) pts_[3 * k + c] = slots[k].p[c];
+      ids_[k] = slots[k].id;
+    }
+  }
+
+  /// Offers every point that may belong to the result set c (c.worstDist(): the squared bound; c.addPoint:
+  /// a point with its squared distance below the bound read at the start of its leaf).
+  template <typename Collector>
+  void search(const double* q, Collector& c) const {
+    if (nodes_.empty()) return;
+    double dists[3] = {0.0, 0.0, 0.0};
+    double distsq = 0.0;
+    for (int d = 0; d < 3; ++d) {
+      if (q[d] < lo_[d]) {
+        dists[d] = (q[d] - lo_[d]) * (q[d] - lo_[d]);
+        distsq += dists[d];
+      }
+      if (q[d] > hi_[d]) {
+        dists[d] = (q[d] - hi_[d]) * (q[d] - hi_[d]);
+        distsq += dists[d];
+      }
+    }
+    searchNode(c, q, 0, distsq, dists);
+  }
+
+ private:
+  struct Node {
+    double low;           ///< inner: the largest coordinate on `axis` of the left part
+    double high;          ///< inner: the smallest coordinate on `axis` of the right part
+    std::int32_t axis;    ///< −1: a leaf
+    std::uint32_t first;  ///< inner: the right child (the left one is the next node); leaf: its first slot
+    std::uint32_t last;   ///< leaf: one past its last slot
+  };
+
+  /// A point and its input row, during the build.
+  struct Slot {
+    double p[3];
+    Index id;
+  };
+
+  /// The subtree of slots [begin, end) (their box lo–hi) at nodes_.size().
+  void build(Slot* slots, std::uint32_t begin, std::uint32_t end, const double* lo, const double* hi) {
+    const std::size_t self = nodes_.size();
+    nodes_.push_back(Node{0.0, 0.0, -1, begin, end});
+    int axis = 0;
+    for (int c = 1; c < 3; ++c) {
+      if (hi[c] - lo[c] > hi[axis] - lo[axis]) axis = c;
+    }
+    // A leaf: few points, or all of them at one place (duplicates do not split).
+    if (end - begin <= kLeafSize || !(hi[axis] > lo[axis])) return;
+    const std::uint32_t mid = begin + (end - begin) / 2;
+    std::nth_element(slots + begin, slots + mid, slots + end, [axis](const Slot& a, const Slot& b) {
+      return a.p[axis] < b.p[axis] || (a.p[axis] == b.p[axis] && a.id < b.id);
+    });
+    // The two parts' boxes (for their own splits) and the gap between them on `axis`.
+    double llo[3], lhi[3], rlo[3], rhi[3];
+    for (int c = 0; c < 3; ++c) {
+      llo[c] = rlo[c] = HUGE_VAL;
+      lhi[c] = rhi[c] = -HUGE_VAL;
+    }
+    for (std::uint32_t k = begin; k < end; ++k) {
+      const double* p = slots[k].p;
+      double* blo = k < mid ? llo : rlo;
+      double* bhi = k < mid ? lhi : rhi;
+      for (int c = 0; c < 3; ++c) {
+        blo[c] = std::min(blo[c], p[c]);
+        bhi[c] = std::max(bhi[c], p[c]);
+      }
+    }
+    build(slots, begin, mid, llo, lhi);
+    const auto right = static_cast<std::uint32_t>(nodes_.size());
+    build(slots, mid, end, rlo, rhi);
+    nodes_[self] = Node{lhi[axis], rlo[axis], axis, right, 0};
+  }
+
+  template <typename Collector>
+  void searchNode(Collector& c, const double* q, std::uint32_t node, double mindistsq, double* dists) const {
+    const Node& n = nodes_[node];
+    if (n.axis < 0) {
+      const double worst = c.worstDist();
+      for (std::uint32_t s = n.first; s < n.last; ++s) {
+        const double* p = pts_.data() + 3 * static_cast<std::size_t>(s);
+        const double d0 = q[0] - p[0], d1 = q[1] - p[1], d2 = q[2] - p[2];
+        double r = d0 * d0;
+        r += d1 * d1;
+        r += d2 * d2;
+        if (r < worst) c.addPoint(r, ids_[s]);
+      }
+      return;
+    }
+    const double val = q[n.axis];
+    const double diff1 = val - n.low, diff2 = val - n.high;
+    std::uint32_t best, other;
+    double cut;
+    if (diff1 + diff2 < 0.0) {
+      best = node + 1;
+      other = n.first;
+      cut = diff2 * diff2;
+    } else {
+      best = n.first;
+      other = node + 1;
+      cut = diff1 * diff1;
+    }
+    searchNode(c, q, best, mindistsq, dists);
+    const double dst = dists[n.axis];
+    mindistsq = mindistsq + cut - dst;
+    dists[n.axis] = cut;
+    if (mindistsq <= c.worstDist()) searchNode(c, q, other, mindistsq, dists);
+    dists[n.axis] = dst;
+  }
+
+  std::vector<Node> nodes_;
+  std::vector<double> pts_;  ///< x y z a slot, in leaf order
+  std::vector<Index> ids_;   ///< the input row of each slot
+  double lo_[3] = {0.0, 0.0, 0.0}, hi_[3] = {0.0, 0.0, 0.0};
+};
+
 /// One empty list a query (a search of an empty set).
 NeighborLists noHits(const Points& queries) {
   NeighborLists out;
@@ -163,12 +303,9 @@ NeighborLists noHits(const Points& queries) {
   return out;
 }
 
-/// FLANN's parameters for an exact search (no check limit, no approximation, results left unsorted).
-flann::SearchParams exactSearch() { return flann::SearchParams(flann::FLANN_CHECKS_UNLIMITED, 0.0f, false); }
-
 /// Stops at the first point other than the excluded one with rounded distance < radius: the bound
 /// then goes negative, which prunes every branch not yet entered.
-class AnyOtherCollector final : public flann::ResultSet<double> {
+class AnyOtherCollector {
  public:
   void reset(Index exclude, double radius) noexcept {
     exclude_ = exclude;
@@ -176,13 +313,12 @@ class AnyOtherCollector final : public flann::ResultSet<double> {
     bound_ = squaredBound(radius);
     found_ = false;
   }
-  bool full() const override { return true; }
-  double worstDist() const override { return bound_; }
-  void addPoint(double squared, size_t index) override {
-    if (found_ || static_cast<Index>(index) == exclude_) return;
+  double worstDist() const { return bound_; }
+  void addPoint(double squared, Index index) {
+    if (found_ || index == exclude_) return;
     const double d = std::sqrt(squared);
     if (!(d < radius_)) return;
-    hit_ = Hit{d, static_cast<Index>(index)};
+    hit_ = Hit{d, index};
     found_ = true;
     bound_ = -1.0;
   }
@@ -250,9 +386,8 @@ class ErrorSlot {
 }  // namespace
 
 struct NeighborIndex::Impl {
-  std::vector<double> data;  ///< n×3 row-major copy; FLANN keeps pointers into it
   std::size_t size = 0;
-  std::unique_ptr<Tree> tree;  ///< null for an empty set
+  std::unique_ptr<KdTree> tree;  ///< null for an empty set
 
   /// Runs searchOne(state, i, query, hits) for every query (row i, its coordinates at `query`) in parallel
   /// blocks and returns the lists; each thread owns a state from makeState(), and searchOne appends one
@@ -386,11 +521,7 @@ NeighborIndex::NeighborIndex(const Points& points) : impl_(std::make_unique<Impl
   checkFinite(points, "point");
   impl_->size = static_cast<std::size_t>(points.rows());
   if (impl_->size == 0) return;
-  impl_->data.resize(3 * impl_->size);
-  std::memcpy(impl_->data.data(), points.data(), impl_->data.size() * sizeof(double));
-  const flann::Matrix<double> matrix(impl_->data.data(), impl_->size, 3);
-  impl_->tree = std::make_unique<Tree>(matrix, flann::KDTreeSingleIndexParams(kLeafSize, true));
-  impl_->tree->buildIndex();
+  impl_->tree = std::make_unique<KdTree>(points.data(), impl_->size);
 }
 
 NeighborIndex::NeighborIndex(NeighborIndex&&) noexcept = default;
@@ -414,14 +545,13 @@ NeighborLists NeighborIndex::radiusImpl(const Points& queries, double radius, In
   }
   checkFinite(queries, "query");
   if (size() == 0) return noHits(queries);
-  const Tree& tree = *impl_->tree;
-  const flann::SearchParams params = exactSearch();
+  const KdTree& tree = *impl_->tree;
   return impl_->run(
       queries, [radius] { return RadiusCollector(radius); },
-      [&tree, &params, sorted](RadiusCollector& collector, std::size_t, const double* query, std::vector<Hit>& hits) {
+      [&tree, sorted](RadiusCollector& collector, std::size_t, const double* query, std::vector<Hit>& hits) {
         const std::size_t before = hits.size();
         collector.reset(&hits);
-        tree.findNeighbors(collector, query, params);
+        tree.search(query, collector);
         if (sorted) sortHits(hits.data() + before, hits.data() + hits.size());
       },
       interrupter);
@@ -444,14 +574,13 @@ NeighborLists NeighborIndex::nearestWithin(const Points& queries, double radius,
 NeighborLists NeighborIndex::knnImpl(const Points& queries, std::size_t k, double bound, Interrupter* interrupter) const {
   checkFinite(queries, "query");
   if (size() == 0) return noHits(queries);
-  const Tree& tree = *impl_->tree;
+  const KdTree& tree = *impl_->tree;
   const std::size_t kept = std::min(k, impl_->size);
-  const flann::SearchParams params = exactSearch();
   return impl_->run(
       queries, [kept, bound] { return KnnCollector(kept, bound); },
-      [&tree, &params](KnnCollector& collector, std::size_t, const double* query, std::vector<Hit>& hits) {
+      [&tree](KnnCollector& collector, std::size_t, const double* query, std::vector<Hit>& hits) {
         collector.clear();
-        tree.findNeighbors(collector, query, params);
+        tree.search(query, collector);
         collector.appendSorted(hits);
       },
       interrupter);
@@ -471,14 +600,13 @@ NeighborLists NeighborIndex::anyOtherWithin(const Points& queries, const std::ve
   }
   checkFinite(queries, "query");
   if (size() == 0) return noHits(queries);
-  const Tree& tree = *impl_->tree;
-  const flann::SearchParams params = exactSearch();
+  const KdTree& tree = *impl_->tree;
   return impl_->run(
       queries, [] { return AnyOtherCollector(); },
       [&](AnyOtherCollector& collector, std::size_t i, const double* query, std::vector<Hit>& hits) {
         if (!(radius[i] > 0.0)) return;  // no distance is below a radius ≤ 0
         collector.reset(exclude[i], radius[i]);
-        tree.findNeighbors(collector, query, params);
+        tree.search(query, collector);
         if (collector.found()) hits.push_back(collector.hit());
       },
       interrupter);
