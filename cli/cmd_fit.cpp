@@ -1,6 +1,7 @@
 // `duplexfit fit`: cloud (or mesh, sampled) in, one field out (or one per surface with --separate), plus meshes of the surface
 // and every offset surface and a JSON report (runPipeline, writePipelineOutputs). Outputs are staged in a
 // temporary folder inside the output folder and moved into place only when everything succeeded.
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -29,6 +30,11 @@ int statusOf(const std::exception& e) {
   return kNumerical;
 }
 
+/// Every mesh of the run is sound (PipelineSurface::sound), as --strict asks.
+bool allSound(const PipelineResult& result) {
+  return std::all_of(result.surfaces.begin(), result.surfaces.end(), [](const PipelineSurface& s) { return s.sound(); });
+}
+
 }  // namespace
 
 int cmdFit(int argc, char** argv) {
@@ -51,8 +57,9 @@ int cmdFit(int argc, char** argv) {
   addJson(app, json, "print report.json on stdout instead of the summary");
   addDeviceOptions(app, device);
   addQuiet(app, quiet);
-  app.add_flag("--strict", strict, "exit with status 4 if a level's CG fails, the self-check finds an issue or the "
-               "shell is not a valid solid; an open or non-manifold mesh input is an error (status 1)");
+  app.add_flag("--strict", strict, "exit with status 4 if a level's CG fails, the self-check finds an issue, a mesh "
+               "written is not a closed 2-manifold free of self-intersections or the shell is not a valid solid; an "
+               "open or non-manifold mesh input is an error (status 1)");
   app.add_flag("--normals-inward", fit.normalsInward, "the input normals point into the solid");
   addNumber(app, "validity-tol", fit.validityTolerance, "offset validity tolerance (default 0.01)");
   addInteger(app, "levels", fit.levels, "number of levels (default: from the point density)");
@@ -245,7 +252,9 @@ int cmdFit(int argc, char** argv) {
     std::ifstream committed(std::filesystem::path(outDir) / "report.json", std::ios::binary);
     std::cout << committed.rdbuf();
     const bool shellValid = !result.shell || result.shell->report.valid();
-    return strict && (!result.report.converged() || !result.report.selfCheck.ok() || !shellValid) ? kNumerical : 0;
+    return strict && (!result.report.converged() || !result.report.selfCheck.ok() || !allSound(result) || !shellValid)
+               ? kNumerical
+               : 0;
   }
   const FitReport& rep = result.report.fit;
   std::cout << std::setprecision(4) << "fit " << (o.separate ? "(separate) " : "") << input << ": ";
@@ -280,7 +289,7 @@ int cmdFit(int argc, char** argv) {
   for (const std::string& f : pipelineFieldNames(result)) std::cout << " " << (dir / f).string() << ",";
   std::cout << " " << (dir / "report.json").string() << "\n";
   const bool shellOk = !result.shell || result.shell->report.valid();
-  return strict && (!result.report.converged() || !check.ok() || !shellOk) ? kNumerical : 0;
+  return strict && (!result.report.converged() || !check.ok() || !allSound(result) || !shellOk) ? kNumerical : 0;
 }
 
 }  // namespace duplexfit::cli

@@ -65,8 +65,9 @@ reference:
       --offset D[,D..] signed offsets in input units: positive = inward (hollowing), negative = outward
       --offset-rel     offsets are fractions of the bounding box's largest side
       -o DIR           output folder (default: current folder)
-      --device SPEC, --precision float|double, --quiet, --strict (exit 4 if a level's CG fails or
-                       the self-check below finds a component issue)
+      --device SPEC, --precision float|double, --quiet, --strict (exit 4 if a level's CG fails,
+                       the self-check below finds a component issue or a mesh written is not a closed
+                       2-manifold free of self-intersections)
       --normals-inward the input normals point into the solid
       --validity-tol η offset validity tolerance (default 0.01)
       --levels M       number of levels (default: from the point density)

@@ -106,6 +106,11 @@ struct PipelineSurface {
   Mesh mesh;              ///< after the clean-up (small components dropped) and finishSurfaces
   MeshTopology topology;
   MeshFinishReport finish;  ///< cleaning, simplification and the deviation from the level set
+
+  /// A closed, oriented 2-manifold with no self-intersecting triangle pair left by the projection (the pairs
+  /// its undo found and could not remove: finish.project.selfIntersectionsLeft). What `fit --strict` asks of
+  /// every mesh it writes.
+  bool sound() const noexcept;
 };
 
 /// The printable shell of a pipeline run (PipelineOptions::shell).

@@ -1009,6 +1009,12 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
 }  // namespace
 
 
+bool PipelineSurface::sound() const noexcept {
+  const ProjectReport& p = finish.project;
+  return topology.watertight() && topology.manifold() && topology.oriented() &&
+         !(p.selfIntersectionsChecked && p.selfIntersectionsLeft > 0);
+}
+
 bool PipelineReport::converged() const noexcept {
   const auto ok = [](const FitReport& r) {
     return std::all_of(r.levelReports.begin(), r.levelReports.end(),

@@ -16,6 +16,7 @@
 #include "duplexfit/io.hpp"
 #include "duplexfit/measure.hpp"
 #include "duplexfit/mesh_finish.hpp"
+#include "duplexfit/pipeline.hpp"
 #include "duplexfit/polygonize.hpp"
 #include "duplexfit/surfaces.hpp"
 #include "data.hpp"
@@ -149,6 +150,34 @@ TEST_CASE("cleaning does not fold a sharp tip through itself") {
     CHECK(c.topology.eulerCharacteristic == analyzeTopology(raw).eulerCharacteristic);
     CHECK(c.boundaryLoops == checkMesh(raw).boundaryLoops);
   }
+}
+
+TEST_CASE("a pipeline surface is sound only closed, manifold, oriented and without pairs left by the projection") {
+  // `fit --strict` exits with status 4 unless every mesh it writes is sound.
+  Mesh tet;
+  tet.vertices.resize(4, 3);
+  tet.vertices << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
+  tet.faces.resize(4, 3);
+  tet.faces << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3;
+  PipelineSurface s;
+  s.mesh = tet;
+  s.topology = analyzeTopology(tet);
+  CHECK(s.sound());
+  s.finish.project.selfIntersectionsChecked = true;
+  CHECK(s.sound());
+  s.finish.project.selfIntersectionsLeft = 2;
+  CHECK_FALSE(s.sound());
+  s.finish.project.selfIntersectionsChecked = false;  // not checked: nothing known to be left
+  CHECK(s.sound());
+  s.finish.project = ProjectReport{};
+  Mesh open = tet;
+  open.faces.conservativeResize(3, 3);
+  s.topology = analyzeTopology(open);
+  CHECK_FALSE(s.sound());
+  Mesh flipped = tet;
+  flipped.faces.row(3) << 1, 3, 2;
+  s.topology = analyzeTopology(flipped);
+  CHECK_FALSE(s.sound());
 }
 
 TEST_CASE("cleaning: an open mesh keeps its boundary; bad options are rejected") {
