@@ -258,14 +258,15 @@ class KdTree {
   void searchNode(Collector& c, const double* q, std::uint32_t node, double mindistsq, double* dists) const {
     const Node& n = nodes_[node];
     if (n.axis < 0) {
-      const double worst = c.worstDist();
+      // The bound is read again after every point taken (a k-nearest set's shrinks as it fills; FLANN read it
+      // once a leaf): the same points end in the set, fewer are offered to it.
       for (std::uint32_t s = n.first; s < n.last; ++s) {
         const double* p = pts_.data() + 3 * static_cast<std::size_t>(s);
         const double d0 = q[0] - p[0], d1 = q[1] - p[1], d2 = q[2] - p[2];
         double r = d0 * d0;
         r += d1 * d1;
         r += d2 * d2;
-        if (r < worst) c.addPoint(r, ids_[s]);
+        if (r < c.worstDist()) c.addPoint(r, ids_[s]);
       }
       return;
     }
