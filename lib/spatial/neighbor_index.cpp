@@ -184,8 +184,8 @@ class KdTree {
     }
   }
 
-  /// Offers every point that may belong to the result set c (c.worstDist(): the squared bound; c.addPoint:
-  /// a point with its squared distance below the bound read at the start of its leaf).
+  /// Offers every point that may belong to the result set c (c.worstDist(): its squared bound, read before
+  /// each point and each far child; c.addPoint: a point with its squared distance below that bound).
   template <typename Collector>
   void search(const double* q, Collector& c) const {
     if (nodes_.empty()) return;
