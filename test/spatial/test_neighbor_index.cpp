@@ -284,6 +284,62 @@ TEST_SUITE("spatial") {
     }
   }
 
+  TEST_CASE("neighbors: degenerate layouts (one point repeated, a plane, a line, far from the origin) equal brute force") {
+    // The k-d tree splits on the widest axis at the median: a leaf of many copies of one point, boxes of zero
+    // extent on an axis and coordinates large against the spacing must not lose or repeat a point.
+    std::vector<Points> layouts;
+    {
+      Points p = randomPoints(600, 21u);
+      for (int i = 0; i < 500; ++i) p.row(i) << 0.25, 0.5, 0.75;  // 500 copies, more than a leaf holds
+      layouts.push_back(p);
+    }
+    {
+      Points p = randomPoints(800, 22u);
+      p.col(2).setConstant(0.5);  // a plane
+      layouts.push_back(p);
+    }
+    {
+      Points p = randomPoints(400, 23u);
+      p.col(1) = p.col(0);
+      p.col(2).setConstant(-2.0);  // a line
+      layouts.push_back(p);
+    }
+    {
+      Points p = randomPoints(700, 24u);
+      p.array() += 1e6;  // far from the origin: spacing about 1e-8 of the coordinates
+      layouts.push_back(p);
+    }
+    const double all = std::numeric_limits<double>::infinity();
+    for (std::size_t l = 0; l < layouts.size(); ++l) {
+      CAPTURE(l);
+      const Points& points = layouts[l];
+      Points queries = mixedQueries(points);
+      if (l == 3) queries.topRows(200).array() += 1e6;
+      const NeighborIndex index(points);
+      for (int k : {1, 12, 40}) {
+        CAPTURE(k);
+        requireSameLists(index.knnSearch(queries, k), bruteForce(points, queries, all, k));
+      }
+      for (double radius : {0.02, 0.1, 0.3}) {
+        CAPTURE(radius);
+        requireSameLists(index.radiusSearch(queries, radius), bruteForce(points, queries, radius, 0));
+        const NeighborLists nearest = index.nearestWithin(queries, radius);
+        const NeighborLists want = bruteForce(points, queries, all, 1);
+        for (std::size_t q = 0; q < want.queries(); ++q) {
+          CAPTURE(q);
+          const double d = want.distances[static_cast<std::size_t>(want.offsets[q])];
+          if (d < 0.999 * radius) {
+            REQUIRE(nearest.count(q) == 1);
+            CHECK(nearest.indices[static_cast<std::size_t>(nearest.offsets[q])] == want.indices[static_cast<std::size_t>(want.offsets[q])]);
+            CHECK(nearest.distances[static_cast<std::size_t>(nearest.offsets[q])] == d);
+          } else if (d > 1.001 * radius) {
+            CHECK(nearest.count(q) == 0);
+          }
+        }
+      }
+    }
+  }
+
   TEST_CASE("neighbors: knn with k larger than the set returns every point") {
     const Points points = randomPoints(10, 5u);
     const NeighborIndex index(points);
