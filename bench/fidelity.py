@@ -356,18 +356,22 @@ def markdown(doc, cfg):
         "mean / p99 / max over the samples; columns are ours / peer / truth-offset.",
         "* **components**: faces sharing a vertex (coincident vertices welded); significant = at least 1 % of "
         "that mesh's area, tiny = below 0.1 %. Zero-level column: all components.",
+        "* **genus**: handles of the significant components, summed ((2 - V + E - F) / 2 a component, vertices "
+        "welded); the truth columns are the ground-truth mesh's and its exact (OpenVDB) offset's.",
         "* D > 0 is inward, D < 0 outward (duplexfit's sign convention).", "",
     ]
     head = ("| model | D | time s ours / peer | zero mean e-3 ours / peer | zero Hausdorff e-3 ours / peer | "
             "zero comps ours / peer / truth | offset mean % ours / peer / truth | offset p99 % ours / peer / truth | "
             "offset max % ours / peer / truth | "
-            "offset comps >= 1 % ours / peer / truth | offset comps < 0.1 % ours / peer / truth |")
+            "offset comps >= 1 % ours / peer / truth | offset comps < 0.1 % ours / peer / truth | "
+            "zero genus ours / peer / truth | offset genus ours / peer / truth |")
     lines += [head, "|" + "|".join(["---"] * (head.count("|") - 1)) + "|"]
-    win_off = win_zero = n_off = n_zero = 0
+    win_off = win_zero = n_off = n_zero = n_genus = 0
+    genus_off = []
     for r in rows:
         o, p, t = r.get("ours", {}), r.get("peer", {}), r.get("truth_offset", {})
         if r.get("status") == "error" and not o.get("offset"):
-            lines.append("| %s | %g | error: %s | | | | | | | | |" % (r["model"], r["delta"],
+            lines.append("| %s | %g | error: %s | | | | | | | | | | |" % (r["model"], r["delta"],
                                                                    "; ".join(r["errors"]).replace("|", "/")[:300]))
             continue
         pt = None
@@ -385,7 +389,11 @@ def markdown(doc, cfg):
                cell(get(o, "offset_components", "significant"), get(p, "offset_components", "significant"),
                     get(t, "offset_components", "significant")),
                cell(get(o, "offset_components", "tiny"), get(p, "offset_components", "tiny"),
-                    get(t, "offset_components", "tiny"))]
+                    get(t, "offset_components", "tiny")),
+               cell(get(o, "zero_components", "genus"), get(p, "zero_components", "genus"),
+                    get(r, "truth_components", "genus")),
+               cell(get(o, "offset_components", "genus"), get(p, "offset_components", "genus"),
+                    get(t, "offset_components", "genus"))]
         if r.get("errors"):
             row[0] += " (errors: %s)" % "; ".join(r["errors"]).replace("|", "/")[:200]
         lines.append("| " + " | ".join(row) + " |")
@@ -397,12 +405,22 @@ def markdown(doc, cfg):
         if a is not None and b is not None:
             n_zero += 1
             win_zero += a <= b
+        a, b = get(o, "offset_components", "genus"), get(t, "offset_components", "genus")
+        if a is not None and b is not None:
+            n_genus += 1
+            if a != b:
+                genus_off.append("%s D=%g (%g vs %g)" % (r["model"], r["delta"], a, b))
     lines.append("")
     if cfg.show_peer:
         lines.append("**Summary: ours <= peer offset mean on %d of %d pairs; ours <= peer zero-level mean on %d of "
                      "%d pairs.**" % (win_off, n_off, win_zero, n_zero))
         doc["summary"] = {"offset_mean_ours_le_peer": win_off, "offset_pairs": n_off,
                           "zero_mean_ours_le_peer": win_zero, "zero_pairs": n_zero}
+    if n_genus:
+        lines.append("")
+        lines.append("**Offset genus = the exact offset's on %d of %d pairs**%s" % (
+            n_genus - len(genus_off), n_genus, (": differs on " + ", ".join(genus_off) + ".") if genus_off else "."))
+        doc["offset_genus_differs"] = genus_off
     errors = [r for r in rows if r.get("errors")]
     per_model = {}
     for r in rows:

@@ -295,9 +295,18 @@ def components(verts, faces, weld=True):
     roots, comp = np.unique(lab, return_inverse=True)
     areas = np.bincount(comp, weights=face_areas(np.asarray(verts, np.float64), faces), minlength=len(roots))
     counts = np.bincount(comp, minlength=len(roots))
+    # Euler characteristic V - E + F of each component (welded vertices, undirected edges): its genus is
+    # (2 - chi) / 2 when it is a closed orientable surface.
+    nv_comp = np.bincount(comp[np.unique(f.reshape(-1), return_index=True)[1] // 3], minlength=len(roots))
+    und = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    ecomp = np.concatenate([comp, comp, comp])
+    _, first = np.unique(und, axis=0, return_index=True)
+    ne_comp = np.bincount(ecomp[first], minlength=len(roots))
+    chi = nv_comp - ne_comp + counts
     total = float(areas.sum())
     order = np.argsort(-areas, kind="stable")
-    return [{"faces": int(counts[i]), "area": float(areas[i]), "share": float(areas[i] / total) if total > 0 else 0.0}
+    return [{"faces": int(counts[i]), "area": float(areas[i]), "share": float(areas[i] / total) if total > 0 else 0.0,
+             "euler": int(chi[i]), "genus": (2 - int(chi[i])) / 2.0}
             for i in order]
 
 
@@ -306,6 +315,8 @@ def component_summary(comps, significant=0.01, tiny=0.001):
     return {"components": len(comps),
             "significant": sum(1 for c in comps if c["share"] >= significant),
             "tiny": sum(1 for c in comps if c["share"] < tiny),
+            # handles of the significant components (their genus summed; a tiny piece's is left out)
+            "genus": sum(c["genus"] for c in comps if c["share"] >= significant),
             "area": float(sum(c["area"] for c in comps)),
             "shares": [round(c["share"], 6) for c in comps[:20]]}
 
