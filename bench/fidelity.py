@@ -12,7 +12,8 @@ For every shared cloud with ground truth and every delta (positive = inward, as 
   4. `duplexfit measure ZERO TRUTH --json` (Metro: mean, Hausdorff) for both zero levels and
      `duplexfit measure OFFSET --offset-of TRUTH --delta D --json` (|d - |D|| / |D|: mean, p99, max) for
      ours, the peer's and the truth's offset; connected components (faces sharing a vertex) of every mesh,
-     significant when >= 1 % of that mesh's area, tiny when < 0.1 %;
+     significant when >= 1 % of that mesh's area, tiny when < 0.1 %, and the genus of the significant ones
+     (against the truth mesh's and its exact offset's);
   5. writes a markdown table (--out, default docs/fidelity.md) and all raw numbers as JSON beside it.
 
 usage: /usr/bin/python3 bench/fidelity.py [--models a,b] [--deltas 0.025,0.05] [--out docs/fidelity.md]
