@@ -18,6 +18,7 @@
 
 #include "duplexfit/types.hpp"
 #include "core/default_init.hpp"
+#include "spatial/squared_distance.hpp"
 
 namespace duplexfit::detail {
 
@@ -110,9 +111,7 @@ class CellGrid {
  private:
   /// The squared distance from q to sorted point k, as NeighborIndex sums it.
   double squaredTo(const double* q, std::uint32_t k) const noexcept {
-    const double* p = xyz_.data() + 3 * static_cast<std::size_t>(k);
-    const double dx = q[0] - p[0], dy = q[1] - p[1], dz = q[2] - p[2];
-    return dx * dx + dy * dy + dz * dz;
+    return squaredDistance(q, xyz_.data() + 3 * static_cast<std::size_t>(k));
   }
 
   /// Calls run(begin, end) for the sorted points of each (y, z) row of cells that [q − r, q + r] meets.

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <cstring>
 #include <exception>
 #include <limits>
 #include <optional>
@@ -13,12 +12,11 @@
 #include <vector>
 
 #include "duplexfit/neighbors.hpp"
-
 #include "duplexfit/error.hpp"
 #include "parallel/omp_threads.hpp"
 #include "spatial/morton.hpp"
 #include "spatial/search_stop.hpp"
-
+#include "spatial/squared_distance.hpp"
 
 namespace duplexfit {
 
@@ -152,8 +150,8 @@ class KnnCollector {
 /// the other only when the squared distance to its cell does not exceed the result set's bound. The result
 /// set is a template parameter, so neither the per-point test nor the bound is a virtual call (FLANN's
 /// ResultSet made both virtual: 15% of fandisk_550k's fit samples were its search and its callbacks).
-/// Squared distances are summed as FLANN's L2_3D does ((q − p)ₓ² + (q − p)ᵧ², then + (q − p)𝓏²), so every
-/// distance is the one the FLANN index gave (the fields and meshes of fandisk_550k, wheel_118k and wheel_29k
+/// Squared distances are detail::squaredDistance's (summed as FLANN's L2_3D did), so every distance is the
+/// one the FLANN index gave (the fields and meshes of fandisk_550k, wheel_118k and wheel_29k
 /// came out byte for byte the same).
 class KdTree {
  public:
@@ -261,11 +259,7 @@ class KdTree {
       // The bound is read again after every point taken (a k-nearest set's shrinks as it fills; FLANN read it
       // once a leaf): the same points end in the set, fewer are offered to it.
       for (std::uint32_t s = n.first; s < n.last; ++s) {
-        const double* p = pts_.data() + 3 * static_cast<std::size_t>(s);
-        const double d0 = q[0] - p[0], d1 = q[1] - p[1], d2 = q[2] - p[2];
-        double r = d0 * d0;
-        r += d1 * d1;
-        r += d2 * d2;
+        const double r = detail::squaredDistance(q, pts_.data() + 3 * static_cast<std::size_t>(s));
         if (r < c.worstDist()) c.addPoint(r, ids_[s]);
       }
       return;

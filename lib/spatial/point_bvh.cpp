@@ -16,6 +16,7 @@
 #include "parallel/omp_threads.hpp"
 #include "spatial/morton.hpp"
 #include "spatial/search_stop.hpp"
+#include "spatial/squared_distance.hpp"
 
 
 namespace duplexfit::detail {
@@ -152,9 +153,7 @@ void PointBvh::nearestOther(const Points& queries, const std::vector<Eigen::Inde
             if (boxSquared(node, x) > bound) continue;
             if (node.right < 0) {
               for (std::int32_t k = node.first; k < node.last; ++k) {
-                const double* p = points_.data() + 3 * static_cast<std::size_t>(k);
-                const double dx = x[0] - p[0], dy = x[1] - p[1], dz = x[2] - p[2];
-                const double d = std::sqrt(dx * dx + dy * dy + dz * dz);
+                const double d = std::sqrt(squaredDistance(x, points_.data() + 3 * static_cast<std::size_t>(k)));
                 const std::int32_t id = ids_[static_cast<std::size_t>(k)];
                 if (id == skip) continue;
                 if (d < best || (d == best && id < bestId)) {
