@@ -96,6 +96,8 @@ int cmdFit(int argc, char** argv) {
   app.add_option("--format", format, "mesh format: ply (default), obj, stl or 3mf (3mf: builds with lib3mf)")->type_name("FMT");
   app.add_flag("--drop-zero-normals", fit.dropZeroNormalPoints, "drop points whose normal is zero");
   app.add_flag("--side-test", fit.sideTest, "reject offset points behind their nearest point's tangent plane");
+  app.add_flag_callback("--no-crease-test", [&] { fit.creaseTest = false; },
+                        "keep offset points within half their step of a tangent plane across a convex edge");
   app.add_flag_callback("--no-anchors", [&] { fit.signAnchors = false; }, "no sign anchors in empty space");
   addInteger(app, "anchor-skip", fit.anchorSkipFinest, "sign anchors at levels 1 .. M - N (default 1)");
   app.add_flag_callback("--no-overshoot-check", [&] { fit.overshootCheck = false; },

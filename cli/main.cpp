@@ -91,6 +91,9 @@ reference:
       --drop-zero-normals           drop points whose normal is zero instead of keeping them at f = 0
       --side-test      also reject offset/off-surface points behind their nearest point's tangent
                        plane (removes spurious sheets from flipped normals; see FitOptions::sideTest)
+      --no-crease-test keep offset/off-surface points that lie within half their step of a sample's
+                       tangent plane across a convex sharp edge (by default rejected: an unsampled strip
+                       along an edge hides that face from the validity test; see FitOptions::creaseTest)
       --no-anchors     no sign anchors in empty space (winding-number classified centres at levels
                        1 .. M - --anchor-skip, default 1; they stop holes filling with phantom solid)
       --no-overshoot-check  do not check the finest level at points D off the samples (D =

@@ -140,6 +140,7 @@ struct PipelineReport {
   bool denoisedForNoise = false;
   bool separate = false;
   bool sideTest = false;
+  bool creaseTest = true;  ///< FitOptions::creaseTest (report.json "crease_test")
   /// The fit; in separate mode the zero level's fit with offsets, Edelta (each offset field's E0 at its
   /// own points) and secondsTotal of the whole baseline.
   FitReport fit;

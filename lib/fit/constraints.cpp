@@ -78,11 +78,12 @@ class NearestOther {
     for (std::size_t k = 0; k < src.size(); ++k) near[k] = hits.count(k) > 0 ? 1 : 0;
   }
 
- private:
   const NeighborIndex& tree() {
     if (!tree_) tree_ = std::make_unique<NeighborIndex>(points_);
     return *tree_;
   }
+
+ private:
   /// The median distance from 1,024 evenly strided points to their nearest other point (0 when all coincide).
   double spacing() {
     if (spacing_ >= 0.0) return spacing_;
@@ -111,6 +112,124 @@ class NearestOther {
   double spacing_ = -1.0;
 };
 
+/// Tangent planes of the points next to a crease (ours, docs/method.md §3.1, "Crease-plane test").
+/// The distance test of §3.1 sees the surface only where it is sampled. Where random sampling leaves a
+/// face without a sample within about |step| of a sharp edge, a companion of a point on the other face, or
+/// one just beyond the edge, passes although the unsampled face is far closer than |step| (cube_24k,
+/// δ = 0.02: a kept companion 0.0002 from the face x = 0.5, and the δ level pulled onto that face there).
+/// Crease points are those with one of their 8 nearest points' normals more than 25.8° off their own
+/// (cosine < 0.9); each stands for a disc of its tangent plane of radius ρ_j = 1.5 × the distance to its
+/// 8th nearest point (at most `radiusCap` when positive: the fit passes 2σ_k). A candidate q of p (normal
+/// ν_p) is rejected when some crease point p_j with a normal more than 25.8° off ν_p, with p_j on q's side
+/// of p's tangent plane and p on q's side of (or on) p_j's, and with q's projection onto p_j's tangent
+/// plane within ρ_j of p_j, has q closer than |step|/2 to that plane on the step's side, or behind it.
+/// The pair condition keeps the test to edges convex towards q, where a tangent plane's distance is never
+/// less than the true distance (the solid is locally the intersection of the half-spaces); without it the
+/// planes of a notch's walls, extended, cut through the solid beside them.
+class CreasePlanes {
+ public:
+  static constexpr double kCreaseCosine = 0.9;
+  static constexpr int kNeighbours = 8;
+  static constexpr double kDiscScale = 1.5;
+  static constexpr double kPlaneFraction = 0.5;
+
+  CreasePlanes(const Points& points, const Points& normals, double radiusCap, Interrupter* interrupter)
+      : points_(points), normals_(normals), radiusCap_(radiusCap), interrupter_(interrupter) {}
+
+  /// rejected[k] = 1 when candidate row k of qs (from point src[k], step steps[k]) fails the test above.
+  void reject(const NeighborIndex& all, const Points& qs, const std::vector<Eigen::Index>& src,
+              const std::vector<double>& steps, std::vector<char>& rejected) {
+    rejected.assign(src.size(), 0);
+    if (!built_) build(all);
+    if (!tree_ || src.empty()) return;
+    constexpr Eigen::Index kBlock = 8192;
+    const auto total = static_cast<Eigen::Index>(src.size());
+    for (Eigen::Index b0 = 0; b0 < total; b0 += kBlock) {
+      const Eigen::Index count = std::min(kBlock, total - b0);
+      double reach = 0.0;
+      for (Eigen::Index k = b0; k < b0 + count; ++k) reach = std::max(reach, std::abs(steps[static_cast<std::size_t>(k)]));
+      if (!(reach > 0.0)) continue;
+      // A rejecting p_j has |q − p_j|² = along² + across² < step² + ρ_j²: the pair condition puts q at
+      // most |step| behind p_j's plane (q = p + step·ν_p, p on q's side of it).
+      const NeighborLists hits =
+          tree_->radiusSearchUnsorted(qs.middleRows(b0, count), std::sqrt(reach * reach + cap_ * cap_), interrupter_);
+#pragma omp parallel for schedule(dynamic, 256)
+      for (Eigen::Index k = 0; k < count; ++k) {
+        const auto uk = static_cast<std::size_t>(b0 + k);
+        const Eigen::Index i = src[uk];
+        const double step = steps[uk];
+        if (step == 0.0) continue;
+        const double sign = step > 0.0 ? 1.0 : -1.0;
+        const Eigen::Vector3d p = points_.row(i).transpose();
+        const Eigen::Vector3d ni = normals_.row(i).transpose();
+        const Eigen::Vector3d q = qs.row(b0 + k).transpose();
+        const Eigen::Vector3d v = q - p;
+        for (auto e = hits.offsets[static_cast<std::size_t>(k)]; e < hits.offsets[static_cast<std::size_t>(k) + 1]; ++e) {
+          const auto c = static_cast<std::size_t>(hits.indices[static_cast<std::size_t>(e)]);
+          const Eigen::Index j = rows_[c];
+          if (j == i) continue;
+          const Eigen::Vector3d nj = normals_.row(j).transpose();
+          if (!(nj.dot(ni) < kCreaseCosine)) continue;
+          const Eigen::Vector3d pj = points_.row(j).transpose();
+          if (!((pj - p).dot(v) > 0.0)) continue;       // p_j on q's side of p's plane
+          if (sign * (p - pj).dot(nj) < 0.0) continue;  // p on q's side of p_j's plane (or on it)
+          const double along = (q - pj).dot(nj);
+          if (!(sign * along < kPlaneFraction * std::abs(step))) continue;
+          const Eigen::Vector3d across = (q - pj) - along * nj;
+          if (across.squaredNorm() > radius_[c] * radius_[c]) continue;
+          rejected[uk] = 1;
+          break;
+        }
+      }
+    }
+  }
+
+ private:
+  void build(const NeighborIndex& all) {
+    built_ = true;
+    const Eigen::Index n = points_.rows();
+    if (n < 2) return;
+    const NeighborLists nn = all.knnSearch(points_, kNeighbours + 1, interrupter_);
+    std::vector<double> radius;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      if (nn.count(ui) < 2 || normals_.row(i).squaredNorm() == 0.0) continue;
+      bool crease = false;
+      for (auto e = nn.offsets[ui]; e < nn.offsets[ui + 1] && !crease; ++e) {
+        const Eigen::Index j = nn.indices[static_cast<std::size_t>(e)];
+        crease = j != i && normals_.row(j).squaredNorm() > 0.0 && normals_.row(i).dot(normals_.row(j)) < kCreaseCosine;
+      }
+      if (!crease) continue;
+      rows_.push_back(i);
+      radius.push_back(kDiscScale * nn.distances[static_cast<std::size_t>(nn.offsets[ui + 1] - 1)]);
+    }
+    if (rows_.empty()) return;
+    cap_ = 0.0;
+    for (double& r : radius) {
+      if (radiusCap_ > 0.0) r = std::min(r, radiusCap_);
+      cap_ = std::max(cap_, r);
+    }
+    if (!(cap_ > 0.0)) {
+      rows_.clear();
+      return;
+    }
+    radius_ = std::move(radius);
+    Points crease(static_cast<Eigen::Index>(rows_.size()), 3);
+    for (std::size_t c = 0; c < rows_.size(); ++c) crease.row(static_cast<Eigen::Index>(c)) = points_.row(rows_[c]);
+    tree_ = std::make_unique<NeighborIndex>(crease);
+  }
+
+  const Points& points_;
+  const Points& normals_;
+  double radiusCap_;
+  Interrupter* interrupter_;
+  bool built_ = false;
+  std::vector<Eigen::Index> rows_;  ///< the crease points' rows of points_
+  std::vector<double> radius_;      ///< their ρ_j
+  double cap_ = 0.0;
+  std::unique_ptr<NeighborIndex> tree_;
+};
+
 // Candidates q = p_i + step·ν_i for points with a non-zero normal, kept when the nearest point p_j of P
 // other than p_i is at least |step|(1 − η) away (§3.1) and, with `sideTest`, q lies on the step's side of
 // p_j's tangent plane: sign(step)·(q − p_j)·ν_j > 0. The side test (ours, optional) rejects companions
@@ -125,8 +244,12 @@ class NearestOther {
 // components, mean deviation 0.61% vs 0.58% of δ), i.e. onto the local medial surface of a part thinner
 // than 2|step| or the bisector of a crease, and kept with its true distance to the cloud as target, when
 // s ≥ minMedial·|step|. The δ level is then constrained exactly where the plain test leaves it free.
+//
+// With `creases` (may be null), candidates that pass are also put to the crease-plane test (CreasePlanes
+// above), and so are the medial points; those it rejects are dropped, not moved: the distance test that
+// places medial points does not see the unsampled face either.
 Companions validCompanions(const Points& points, const Points& normals, NearestOther& nearestOther, double step,
-                           double eta, bool sideTest, bool medial, double minMedial) {
+                           double eta, bool sideTest, bool medial, double minMedial, CreasePlanes* creases) {
   Companions out;
   std::vector<Eigen::Index> source;
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
@@ -157,6 +280,23 @@ Companions validCompanions(const Points& points, const Points& normals, NearestO
       ok = sign * (q.row(static_cast<Eigen::Index>(k)) - points.row(other[k])).dot(normals.row(other[k])) > 0.0;
     }
     keep[k] = ok ? 1 : 0;
+  }
+  if (creases != nullptr) {
+    std::vector<std::size_t> kept;
+    for (std::size_t k = 0; k < source.size(); ++k) {
+      if (keep[k] != 0) kept.push_back(k);
+    }
+    Points kq(static_cast<Eigen::Index>(kept.size()), 3);
+    std::vector<Eigen::Index> ksrc(kept.size());
+    for (std::size_t r = 0; r < kept.size(); ++r) {
+      kq.row(static_cast<Eigen::Index>(r)) = q.row(static_cast<Eigen::Index>(kept[r]));
+      ksrc[r] = source[kept[r]];
+    }
+    std::vector<char> off;
+    creases->reject(nearestOther.tree(), kq, ksrc, std::vector<double>(kept.size(), step), off);
+    for (std::size_t r = 0; r < kept.size(); ++r) {
+      if (off[r] != 0) keep[kept[r]] = 0;
+    }
   }
   for (std::size_t k = 0; k < source.size(); ++k) {
     if (keep[k] == 0) continue;
@@ -191,9 +331,15 @@ Companions validCompanions(const Points& points, const Points& normals, NearestO
     mq.row(static_cast<Eigen::Index>(r)) = points.row(src[r]) + sign * lo[r] * normals.row(src[r]);
   }
   nearestOther(mq, src, step, dist, other);
+  std::vector<char> off(m, 0);
+  if (creases != nullptr) {
+    std::vector<double> steps(m);
+    for (std::size_t r = 0; r < m; ++r) steps[r] = sign * lo[r];
+    creases->reject(nearestOther.tree(), mq, src, steps, off);
+  }
   std::vector<Eigen::Vector3d> pos;
   for (std::size_t r = 0; r < m; ++r) {
-    if (!(lo[r] >= minMedial * std::abs(step)) || lo[r] <= 0.0) continue;
+    if (!(lo[r] >= minMedial * std::abs(step)) || lo[r] <= 0.0 || off[r] != 0) continue;
     if (sideTest && other[r] >= 0 && normals.row(other[r]).squaredNorm() > 0.0 &&
         !(sign * (mq.row(static_cast<Eigen::Index>(r)) - points.row(other[r])).dot(normals.row(other[r])) > 0.0)) {
       continue;
@@ -281,9 +427,11 @@ std::vector<double> worldOffsets(const std::vector<double>& offsets, bool relati
 }
 
 Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta, bool sideTest,
-                         std::vector<Eigen::Index>& sources) {
+                         bool creaseTest, std::vector<Eigen::Index>& sources) {
   NearestOther index(points, nullptr);
-  Companions c = validCompanions(points, normals, index, step, eta, sideTest, false, 0.0);
+  std::unique_ptr<CreasePlanes> creases;
+  if (creaseTest) creases = std::make_unique<CreasePlanes>(points, normals, 0.0, nullptr);
+  Companions c = validCompanions(points, normals, index, step, eta, sideTest, false, 0.0, creases.get());
   sources = std::move(c.sources);
   return std::move(c.positions);
 }
@@ -296,6 +444,8 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
     if (!options.dropZeroNormalPoints || normals.row(i).squaredNorm() > 0.0) surfaceRows.push_back(i);
   }
   NearestOther index(points, options.interrupter);
+  std::unique_ptr<CreasePlanes> creases;
+  if (options.creaseTest) creases = std::make_unique<CreasePlanes>(points, normals, options.creaseRadiusCap, options.interrupter);
 
   // Blocks in priority order (surface, offsets, off-surface, then the medial points of both); each row
   // has its own target.
@@ -321,7 +471,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   };
   for (const double delta : options.offsets) {
     Companions c = validCompanions(points, normals, index, delta, options.validityTolerance, options.tangentSideTest,
-                                   options.medial, options.minMedialFraction);
+                                   options.medial, options.minMedialFraction, creases.get());
     blockTargets.push_back(Eigen::VectorXd::Constant(c.positions.rows(), delta));
     blockSources.push_back(c.sources);
     out.offsetCandidates.push_back(c.candidates);
@@ -335,7 +485,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   else if (options.offSurfaceSide != 0) sides = {options.offSurfaceSide};
   for (const int side : sides) {
     Companions c = validCompanions(points, normals, index, side * d, options.validityTolerance, options.tangentSideTest,
-                                   options.medial, options.minMedialFraction);
+                                   options.medial, options.minMedialFraction, creases.get());
     blockTargets.push_back(Eigen::VectorXd::Constant(c.positions.rows(), side * d));
     blockSources.push_back(c.sources);
     out.offSurfaceCandidates += c.candidates;

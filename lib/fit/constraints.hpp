@@ -23,6 +23,12 @@ struct ConstraintOptions {
   bool dropZeroNormalPoints = false;
   /// Also reject a companion q on the wrong side of its nearest other point's tangent plane (FitOptions::sideTest).
   bool tangentSideTest = false;
+  /// Also reject a companion closer than |δ|/2 to a crease point's tangent plane across a convex edge
+  /// (FitOptions::creaseTest; CreasePlanes in constraints.cpp).
+  bool creaseTest = true;
+  /// Largest disc radius of that test (0: none); the fit passes 2σ_k, a bound the same in every rank of the
+  /// distributed fit, whose data radius covers it.
+  double creaseRadiusCap = 0.0;
   /// Move companions rejected by the distance test onto the medial surface (FitOptions::medialConstraints).
   bool medial = false;
   double minMedialFraction = 0.1;  ///< ... kept when moved back to at least this fraction of the step
@@ -56,9 +62,10 @@ struct LevelConstraints {
 std::vector<double> worldOffsets(const std::vector<double>& offsets, bool relative, double side);
 
 /// The offset points p_i + step·ν_i of the points with a non-zero normal that pass the validity test (§3.1)
-/// against all of `points`; `sources` receives the index of each kept point's p_i.
+/// against all of `points` (and, with `creaseTest`, the crease-plane test); `sources` receives the index of
+/// each kept point's p_i.
 Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta, bool sideTest,
-                         std::vector<Eigen::Index>& sources);
+                         bool creaseTest, std::vector<Eigen::Index>& sources);
 
 /// Builds the level's centres from its points P^k and inward normals ν (unit or zero).
 LevelConstraints buildConstraints(const Points& points, const Points& normals, const ConstraintOptions& options);

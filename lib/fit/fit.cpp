@@ -138,6 +138,8 @@ detail::ConstraintOptions detail::levelConstraintOptions(const FitOptions& optio
   co.sigma = sigma;
   co.dropZeroNormalPoints = options.dropZeroNormalPoints;
   co.tangentSideTest = options.sideTest;
+  co.creaseTest = options.creaseTest;
+  co.creaseRadiusCap = 2.0 * sigma;
   co.medial = options.medialConstraints;
   return co;
 }

@@ -389,10 +389,13 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
     // The rank's data: its points and (not gathered) the other ranks' points within the data radius, in
     // id order. Exact mode keeps only the owned centres, whose constraints (validity tests within 2|δ| of
     // a level point, merges, cells whole) need a margin, not a halo system: 2σ_k + 3 max|δ| + 2 cell
-    // diagonals. Local mode: (g + 1)σ_k + 2 max|δ| + one cell diagonal.
+    // diagonals. Local mode: (g + 1)σ_k + 2 max|δ| + one cell diagonal. Both + 3σ_k for the crease-plane
+    // test, which looks up to 2σ_k (its largest disc) further from a companion than the validity test and
+    // classifies the points it finds by their 8 nearest neighbours (about σ_k at the finest level).
     const double cellDiag = k < levels ? box.diagonal / std::pow(2.0, k) : 0.0;
-    const double radius = exact ? 2.0 * sigma + 3.0 * maxOffset + 2.0 * cellDiag
-                                : (dist.halo + 1.0) * sigma + 2.0 * maxOffset + cellDiag;
+    const double crease = options.creaseTest ? 3.0 * sigma : 0.0;
+    const double radius = exact ? 2.0 * sigma + 3.0 * maxOffset + 2.0 * cellDiag + crease
+                                : (dist.halo + 1.0) * sigma + 2.0 * maxOffset + cellDiag + crease;
     Points lp, ln;
     std::vector<int> rowBlock;  // per row of lp: its local block, −1 for another rank's point
     Eigen::Index firstOwnRow = 0;  // gathered level M: this rank's first row in lp

@@ -959,6 +959,7 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
   report.read = file.report;
   report.separate = options.separate;
   report.sideTest = fitOptions.sideTest;
+  report.creaseTest = fitOptions.creaseTest;
   checkGridBeforeFit(file.points, options);
 
   // Duplex mode: one field, every surface a level set of it. Separate mode: one field per surface, each
@@ -1314,6 +1315,7 @@ PipelineResult runDistributedPipeline(const Device& device, Communicator& comm, 
   report.read = file.report;
   report.read.points = static_cast<std::size_t>(fileRows);
   report.sideTest = options.fit.sideTest;
+  report.creaseTest = options.fit.creaseTest;
   DistributedReport drep;
   progress.start("partition");
   const DistributedPoints owned = partitionPoints(comm, file.points, static_cast<std::int64_t>(first), fileRows, drep, distributed.blocks);

@@ -352,6 +352,7 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
   w["duplicates_merged"] = report.duplicatesMerged;
   w["mode"] = separate ? "separate" : "duplex";
   w["side_test"] = report.sideTest;
+  w["crease_test"] = report.creaseTest;
   Json normals;  // null unless estimated
   if (report.normals) {
     const NormalReport& n = *report.normals;
