@@ -127,7 +127,8 @@ double detail::medianSpacing(const Eigen::VectorXd& areas) {
 }
 
 detail::ConstraintOptions detail::levelConstraintOptions(const FitOptions& options, const std::vector<double>& deltas,
-                                                        double sigma, int offSurfaceSide, Interrupter* interrupter) {
+                                                        double sigma, int level, int levels, int offSurfaceSide,
+                                                        Interrupter* interrupter) {
   ConstraintOptions co;
   co.interrupter = interrupter;
   co.offsets = deltas;
@@ -138,7 +139,7 @@ detail::ConstraintOptions detail::levelConstraintOptions(const FitOptions& optio
   co.sigma = sigma;
   co.dropZeroNormalPoints = options.dropZeroNormalPoints;
   co.tangentSideTest = options.sideTest;
-  co.creaseTest = options.creaseTest;
+  co.creaseTest = options.creaseTest && level > levels - kCreaseTestLevels;
   co.creaseRadiusCap = 2.0 * sigma;
   co.medial = options.medialConstraints;
   return co;
@@ -552,7 +553,8 @@ FitResult fit(const Device& device, const PointSet& points, const FitOptions& op
     t = Clock::now();
     report(interrupter, {FitStage::Constraints, k, levels, 0, 0.0, ""}, &work);
     detail::LevelPoints level = k < levels ? detail::cellCentroids(u, nu, box, k) : detail::LevelPoints{u, nu};
-    const detail::ConstraintOptions co = detail::levelConstraintOptions(options, deltas, sigma, offSide, interrupter);
+    const detail::ConstraintOptions co =
+        detail::levelConstraintOptions(options, deltas, sigma, k, levels, offSide, interrupter);
     detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals, co);
     lr.offsetMedial = c.offsetMedial;
     lr.offSurfaceMedial = c.offSurfaceMedial;

@@ -130,11 +130,19 @@ void checkFitOptions(const FitOptions& o);
 /// The typical sample spacing: the square root of the median point area.
 double medianSpacing(const Eigen::VectorXd& areas);
 
-/// The constraint options of level with support `sigma` (normalised units): the offsets `deltas`, the
-/// off-surface side (−1 outside, 1 inside, 0 none, 2 both) and the fit's tolerances and switches; the
-/// neighbour searches poll `interrupter` (may be null).
+/// The levels, counted from the finest, whose constraints get the crease-plane test (FitOptions::creaseTest).
+/// Coarser levels' points are centroids of cells much larger than the gaps the test is for, and their
+/// averaged normals make most of them look like crease points: there the test only took away constraints
+/// the coarse fit used (pinion_53k, δ = 0.05: offset max 23% → 44% of δ with the test at every level, 23%
+/// with it at the finest three). cube_24k needs the finest two (δ = 0.02: max 99% at the finest alone,
+/// 55% with two, 50% with three).
+constexpr int kCreaseTestLevels = 3;
+
+/// The constraint options of level `level` of `levels` with support `sigma` (normalised units): the
+/// offsets `deltas`, the off-surface side (−1 outside, 1 inside, 0 none, 2 both) and the fit's tolerances
+/// and switches; the neighbour searches poll `interrupter` (may be null).
 ConstraintOptions levelConstraintOptions(const FitOptions& options, const std::vector<double>& deltas, double sigma,
-                                         int offSurfaceSide, Interrupter* interrupter);
+                                         int level, int levels, int offSurfaceSide, Interrupter* interrupter);
 /// A level's solver options: options.solver with the absolute tolerance levelTolerance (when it has none)
 /// and, below the finest level, the relative tolerance coarseTolerance.
 SolverOptions levelSolverOptions(const FitOptions& options, bool finest);

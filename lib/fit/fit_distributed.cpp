@@ -393,7 +393,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
     // test, which looks up to 2σ_k (its largest disc) further from a companion than the validity test and
     // classifies the points it finds by their 8 nearest neighbours (about σ_k at the finest level).
     const double cellDiag = k < levels ? box.diagonal / std::pow(2.0, k) : 0.0;
-    const double crease = options.creaseTest ? 3.0 * sigma : 0.0;
+    const double crease = options.creaseTest && k > levels - detail::kCreaseTestLevels ? 3.0 * sigma : 0.0;
     const double radius = exact ? 2.0 * sigma + 3.0 * maxOffset + 2.0 * cellDiag + crease
                                 : (dist.halo + 1.0) * sigma + 2.0 * maxOffset + cellDiag + crease;
     Points lp, ln;
@@ -503,7 +503,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       dl.levelPoints = static_cast<std::size_t>(level.positions.rows());
 
       detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals,
-                                                            detail::levelConstraintOptions(options, deltas, sigma, offSide, interrupter));
+                                                            detail::levelConstraintOptions(options, deltas, sigma, k, levels, offSide, interrupter));
       // The unit's system: its owned centres (those of its level points) and, in local mode, every centre
       // within g·σ_k of an owned one, by position: an offset centre lies |δ| from its source, so on a thin
       // part it neighbours centres whose sources are across the part (the data radius, (g+1)σ_k + 2 max|δ|,

@@ -12,7 +12,9 @@
 #include <utility>
 #include <vector>
 
+#include "duplexfit/fit.hpp"
 #include "fit/constraints.hpp"
+#include "fit/fit_detail.hpp"
 
 using namespace duplexfit;
 
@@ -171,5 +173,17 @@ TEST_SUITE("fit") {
       MESSAGE("delta " << delta << ": " << dropped << " dropped, " << droppedInvalid << " of them with a target 1% or more above the true distance");
       if (delta > 0.0) CHECK(dropped > 0);  // the cube's convex edges have their own unsampled stretches
     }
+  }
+
+  TEST_CASE("crease-plane test: a fit asks for it at its three finest levels only, with discs of at most 2 sigma") {
+    FitOptions options;
+    const std::vector<double> deltas{0.02};
+    for (int level = 1; level <= 7; ++level) {
+      const auto co = detail::levelConstraintOptions(options, deltas, 0.01, level, 7, -1, nullptr);
+      CHECK(co.creaseTest == (level >= 5));
+      CHECK(co.creaseRadiusCap == doctest::Approx(0.02));
+    }
+    options.creaseTest = false;
+    CHECK_FALSE(detail::levelConstraintOptions(options, deltas, 0.01, 7, 7, -1, nullptr).creaseTest);
   }
 }
