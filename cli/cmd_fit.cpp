@@ -287,6 +287,15 @@ int cmdFit(int argc, char** argv) {
   }
   const SelfCheckReport& check = result.report.selfCheck;
   if (!check.ok()) std::cout << "  self-check: " << check.issues.size() << " component issue(s), listed in report.json\n";
+  for (const SurfaceSelfCheck& s : check.surfaces) {
+    // A shell wall below half the offset: the δ level pulled towards the surface somewhere (report.json
+    // self_check.surfaces[j].thinnest_wall, always given).
+    if (s.iso == 0.0 || !(s.thinnestWall < 0.5 * std::abs(s.iso))) continue;
+    std::cout << "  self-check: " << meshNames[static_cast<std::size_t>(s.surface)] << " comes within "
+              << s.thinnestWall << " (" << std::lround(100.0 * s.thinnestWall / std::abs(s.iso)) << "% of |offset|) of "
+              << meshNames[0] << " at (" << s.thinnestWallAt.x() << ", " << s.thinnestWallAt.y() << ", "
+              << s.thinnestWallAt.z() << ")\n";
+  }
   std::cout << " ";
   for (const std::string& f : pipelineFieldNames(result)) std::cout << " " << (dir / f).string() << ",";
   std::cout << " " << (dir / "report.json").string() << "\n";

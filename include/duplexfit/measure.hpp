@@ -179,6 +179,10 @@ struct OffsetReport {
     double meanDistance = 0.0;   ///< mean dist(vertex, S)
     double meanDeviation = 0.0;  ///< mean |dist − |δ||
     double maxDeviation = 0.0;
+    /// The smallest dist(vertex, S) and that vertex (+∞ and NaN when no vertex was measured): where the
+    /// wall between the offset and S is thinnest.
+    double minDistance = std::numeric_limits<double>::infinity();
+    Eigen::Vector3d minAt = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
     /// Not on the offset: mean deviation above half of |δ| (a spurious sheet, not a piece of the offset).
     bool offOffset = false;
   };

@@ -104,6 +104,12 @@ struct SurfaceSelfCheck {
   double area = 0.0;           ///< after dropping
   std::size_t issues = 0;      ///< components that failed
   DroppedComponents dropped;   ///< by cleanAndSelfCheck (zero for selfCheck)
+  /// Offset meshes: the smallest distance from a measured vertex (see offsetVertexSamples) to the zero-level
+  /// mesh, and that vertex: the thinnest wall of the shell between the two surfaces, which should be about
+  /// |δ| (a δ level pulled onto the surface makes it much less). NaN for the zero level, for a mesh without
+  /// faces and when the zero-level mesh has none.
+  double thinnestWall = std::numeric_limits<double>::quiet_NaN();
+  Eigen::Vector3d thinnestWallAt = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
 };
 
 struct SelfCheckReport {

@@ -434,6 +434,10 @@ std::vector<OffsetReport::Component> offsetComponents(const Mesh& offsetMesh, co
     comp.meanDistance += vd[i];
     comp.meanDeviation += deviation;
     comp.maxDeviation = std::max(comp.maxDeviation, deviation);
+    if (vd[i] < comp.minDistance) {
+      comp.minDistance = vd[i];
+      comp.minAt = queries.row(i).transpose();
+    }
   }
   for (std::size_t c = 0; c < count; ++c) {
     OffsetReport::Component& comp = components[c];

@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <ostream>
 
@@ -188,14 +189,20 @@ Json droppedJson(const DroppedComponents& d) {
 Json selfCheckJson(const SelfCheckReport& r, const std::vector<std::string>& meshNames) {
   Json surfaces = Json::array();
   for (const SurfaceSelfCheck& s : r.surfaces) {
-    surfaces.push_back(Json{{"surface", s.surface},
-                            {"file", meshNames[static_cast<std::size_t>(s.surface)]},
-                            {"iso", s.iso},
-                            {"components", s.components},
-                            {"faces", s.faces},
-                            {"area", s.area},
-                            {"issues", s.issues},
-                            {"dropped", droppedJson(s.dropped)}});
+    Json j{{"surface", s.surface},
+           {"file", meshNames[static_cast<std::size_t>(s.surface)]},
+           {"iso", s.iso},
+           {"components", s.components},
+           {"faces", s.faces},
+           {"area", s.area},
+           {"issues", s.issues},
+           {"dropped", droppedJson(s.dropped)}};
+    if (std::isfinite(s.thinnestWall) && s.iso != 0.0) {
+      j["thinnest_wall"] = s.thinnestWall;
+      j["thinnest_wall_relative"] = s.thinnestWall / std::abs(s.iso);
+      j["thinnest_wall_at"] = {s.thinnestWallAt.x(), s.thinnestWallAt.y(), s.thinnestWallAt.z()};
+    }
+    surfaces.push_back(std::move(j));
   }
   Json issues = Json::array();
   for (const ComponentIssue& i : r.issues) {

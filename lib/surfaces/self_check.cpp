@@ -371,6 +371,13 @@ SelfCheckReport selfCheck(const std::vector<Mesh>& meshes, const std::vector<dou
     if (zeroTree) {
       measured = offsetComponents(meshes[j], *zeroTree, isos[j], c.labels, c.stats.size(), options.offsetVertexSamples);
     }
+    for (const OffsetReport::Component& m : measured) {
+      SurfaceSelfCheck& s = r.surfaces[j];
+      if (m.minDistance < (std::isnan(s.thinnestWall) ? std::numeric_limits<double>::infinity() : s.thinnestWall)) {
+        s.thinnestWall = m.minDistance;
+        s.thinnestWallAt = m.minAt;
+      }
+    }
     for (std::size_t l = 0; l < c.stats.size(); ++l) {
       if (zeroTree && !measured[l].offOffset) continue;
       ComponentIssue issue =

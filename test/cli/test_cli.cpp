@@ -89,6 +89,13 @@ TEST_SUITE("cli") {
     CHECK(jsonAt(report, "/self_check/points_checked") == true);
     CHECK(jsonAt(report, "/self_check/issues") == Json::array());
     CHECK(testing::jsonValuesOf(report, "why").empty());  // no component issue anywhere
+    // The offset's thinnest wall to the zero level (measured vertices), about δ = 0.1 on a sphere, where it is
+    // and nothing for the zero level; no warning line on the summary.
+    CHECK(testing::jsonNumber(report, "/self_check/surfaces/1/thinnest_wall_relative") > 0.9);
+    CHECK(testing::jsonNumber(report, "/self_check/surfaces/1/thinnest_wall_relative") < 1.1);
+    CHECK(jsonAt(report, "/self_check/surfaces/1/thinnest_wall_at").size() == 3);
+    CHECK_FALSE(jsonAt(report, "/self_check/surfaces/0").contains("thinnest_wall"));
+    CHECK(r.out.find("comes within") == std::string::npos);
     // Every mesh was cleaned (no float32-degenerate triangle left) and measured against its level set.
     for (const char* m : {"/meshes/0", "/meshes/1"}) {
       CAPTURE(m);

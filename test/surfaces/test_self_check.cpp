@@ -46,6 +46,30 @@ TEST_CASE("self-check: a correct zero level and offsets on both sides have no is
   CHECK(r.seconds >= 0.0);
 }
 
+TEST_CASE("self-check: the thinnest wall between an offset and the zero level, and where it is") {
+  // The unit icosphere and an inward offset of radius 0.8: every offset vertex lies 0.2 from the zero mesh
+  // (within the flat faces' sag, about 0.003 at level 4); outward at 1.1: 0.1.
+  std::vector<Mesh> meshes = {icosphere(4, 1.0), icosphere(4, 0.8), icosphere(4, 1.1)};
+  SelfCheckOptions all;
+  all.offsetVertexSamples = 0;  // every vertex measured
+  const SelfCheckReport r = selfCheck(meshes, {0.0, 0.2, -0.1}, unitSpherePoints(), all);
+  REQUIRE(r.surfaces.size() == 3);
+  CHECK(std::isnan(r.surfaces[0].thinnestWall));  // the zero level has none
+  CHECK(r.surfaces[1].thinnestWall == doctest::Approx(0.2).epsilon(0.02));
+  CHECK(r.surfaces[2].thinnestWall == doctest::Approx(0.1).epsilon(0.05));
+  CHECK(r.surfaces[1].thinnestWallAt.norm() == doctest::Approx(0.8));
+  // One vertex of the inward offset pulled out to radius 0.95 (a fin towards the surface): the wall there
+  // is 0.05 or less, the check names that vertex, and the component as a whole is still on the offset.
+  const Eigen::Index v = 17;
+  meshes[1].vertices.row(v) *= 0.95 / 0.8;
+  const SelfCheckReport fin = selfCheck(meshes, {0.0, 0.2, -0.1}, unitSpherePoints(), all);
+  CHECK(fin.ok());
+  CHECK(fin.surfaces[1].thinnestWall < 0.051);
+  CHECK(fin.surfaces[1].thinnestWall > 0.04);
+  CHECK((fin.surfaces[1].thinnestWallAt - meshes[1].vertices.row(v).transpose()).norm() == 0.0);
+  CHECK(fin.surfaces[2].thinnestWall == doctest::Approx(r.surfaces[2].thinnestWall));
+}
+
 TEST_CASE("self-check: a planted zero-level sphere without input points is exactly one issue") {
   const Mesh surface = icosphere(4, 1.0);
   const Mesh planted = icosphere(2, 0.1, Eigen::RowVector3d(3.0, 0.0, 0.0));
