@@ -233,6 +233,7 @@ void readFitOptions(OptionReader& r, FitOptions& o) {
   r.get("fit_tolerance", o.fitTolerance);
   r.get("merge_distance", o.mergeDistance);
   r.get("side_test", o.sideTest);
+  r.get("crease_test", o.creaseTest);
   r.get("sign_anchors", o.signAnchors);
   r.get("medial_constraints", o.medialConstraints);
   r.get("overshoot_check", o.overshootCheck);
@@ -265,6 +266,7 @@ py::dict fitDefaults() {
   d["fit_tolerance"] = o.fitTolerance;
   d["merge_distance"] = o.mergeDistance;
   d["side_test"] = o.sideTest;
+  d["crease_test"] = o.creaseTest;
   d["sign_anchors"] = o.signAnchors;
   d["medial_constraints"] = o.medialConstraints;
   d["overshoot_check"] = o.overshootCheck;
