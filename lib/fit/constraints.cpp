@@ -447,11 +447,9 @@ std::vector<double> worldOffsets(const std::vector<double>& offsets, bool relati
 }
 
 Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta, bool sideTest,
-                         bool creaseTest, std::vector<Eigen::Index>& sources) {
+                         std::vector<Eigen::Index>& sources) {
   NearestOther index(points, nullptr);
-  std::unique_ptr<CreasePlanes> creases;
-  if (creaseTest) creases = std::make_unique<CreasePlanes>(points, normals, 0.0, eta, nullptr);
-  Companions c = validCompanions(points, normals, index, step, eta, sideTest, false, 0.0, creases.get());
+  Companions c = validCompanions(points, normals, index, step, eta, sideTest, false, 0.0, nullptr);
   sources = std::move(c.sources);
   return std::move(c.positions);
 }

@@ -62,10 +62,10 @@ struct LevelConstraints {
 std::vector<double> worldOffsets(const std::vector<double>& offsets, bool relative, double side);
 
 /// The offset points p_i + step·ν_i of the points with a non-zero normal that pass the validity test (§3.1)
-/// against all of `points` (and, with `creaseTest`, the crease-plane test); `sources` receives the index of
-/// each kept point's p_i.
+/// against all of `points` (the paper's test, for the separate-fit baseline: no crease-plane test); `sources`
+/// receives the index of each kept point's p_i.
 Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta, bool sideTest,
-                         bool creaseTest, std::vector<Eigen::Index>& sources);
+                         std::vector<Eigen::Index>& sources);
 
 /// Builds the level's centres from its points P^k and inward normals ν (unit or zero).
 LevelConstraints buildConstraints(const Points& points, const Points& normals, const ConstraintOptions& options);

@@ -390,10 +390,11 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
     // id order. Exact mode keeps only the owned centres, whose constraints (validity tests within 2|δ| of
     // a level point, merges, cells whole) need a margin, not a halo system: 2σ_k + 3 max|δ| + 2 cell
     // diagonals. Local mode: (g + 1)σ_k + 2 max|δ| + one cell diagonal. Both + 3σ_k for the crease-plane
-    // test, which looks up to 2σ_k (its largest disc) further from a companion than the validity test and
+    // test (where levelConstraintOptions asks for it), which looks up to 2σ_k (its largest disc) further from a companion than the validity test and
     // classifies the points it finds by their 8 nearest neighbours (about σ_k at the finest level).
+    const detail::ConstraintOptions co = detail::levelConstraintOptions(options, deltas, sigma, k, levels, offSide, interrupter);
     const double cellDiag = k < levels ? box.diagonal / std::pow(2.0, k) : 0.0;
-    const double crease = options.creaseTest && k > levels - detail::kCreaseTestLevels ? 3.0 * sigma : 0.0;
+    const double crease = co.creaseTest ? co.creaseRadiusCap + sigma : 0.0;
     const double radius = exact ? 2.0 * sigma + 3.0 * maxOffset + 2.0 * cellDiag + crease
                                 : (dist.halo + 1.0) * sigma + 2.0 * maxOffset + cellDiag + crease;
     Points lp, ln;
@@ -502,8 +503,7 @@ FitResult fitDistributed(const Device& device, Communicator& comm, const Distrib
       }
       dl.levelPoints = static_cast<std::size_t>(level.positions.rows());
 
-      detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals,
-                                                            detail::levelConstraintOptions(options, deltas, sigma, k, levels, offSide, interrupter));
+      detail::LevelConstraints c = detail::buildConstraints(level.positions, level.normals, co);
       // The unit's system: its owned centres (those of its level points) and, in local mode, every centre
       // within g·σ_k of an owned one, by position: an offset centre lies |δ| from its source, so on a thin
       // part it neighbours centres whose sources are across the part (the data radius, (g+1)σ_k + 2 max|δ|,

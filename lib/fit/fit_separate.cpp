@@ -21,7 +21,7 @@ PointSet offsetPointCloud(const PointSet& points, double delta, bool normalsInwa
     nu.row(i) = len > 0.0 ? Eigen::RowVector3d((normalsInward ? 1.0 : -1.0) * n / len) : Eigen::RowVector3d::Zero();
   }
   std::vector<Eigen::Index> sources;
-  Points q = detail::validOffsetPoints(points.positions(), nu, delta, eta, sideTest, false, sources);
+  Points q = detail::validOffsetPoints(points.positions(), nu, delta, eta, sideTest, sources);
   if (q.rows() == 0) {
     std::ostringstream msg;
     msg << "offset " << delta << ": no offset point passed the validity test (the offset is larger than the shape)";

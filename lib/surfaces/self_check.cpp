@@ -371,9 +371,9 @@ SelfCheckReport selfCheck(const std::vector<Mesh>& meshes, const std::vector<dou
     if (zeroTree) {
       measured = offsetComponents(meshes[j], *zeroTree, isos[j], c.labels, c.stats.size(), options.offsetVertexSamples);
     }
+    SurfaceSelfCheck& s = r.surfaces[j];
     for (const OffsetReport::Component& m : measured) {
-      SurfaceSelfCheck& s = r.surfaces[j];
-      if (m.minDistance < (std::isnan(s.thinnestWall) ? std::numeric_limits<double>::infinity() : s.thinnestWall)) {
+      if (std::isfinite(m.minDistance) && !(m.minDistance >= s.thinnestWall)) {  // NaN: none yet
         s.thinnestWall = m.minDistance;
         s.thinnestWallAt = m.minAt;
       }
