@@ -43,6 +43,8 @@ struct CleanReport {
   /// triangles turn more than 60 degrees from the local normal: creases, tips, thin fins).
   std::size_t refusedCrossing = 0;
   std::size_t flips = 0;            ///< cap edges flipped
+  /// Flips refused because a new triangle would touch or cross another (each other, or one around them).
+  std::size_t refusedFlips = 0;
   std::size_t lockedVertices = 0;   ///< on a boundary or non-manifold edge or vertex: never moved
   std::size_t float32DegenerateBefore = 0, float32DegenerateAfter = 0;
   std::size_t sliversBefore = 0, sliversAfter = 0;  ///< minimum angle below 1°

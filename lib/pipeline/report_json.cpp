@@ -102,6 +102,7 @@ void addFinishReport(Json& m, const MeshFinishReport& f) {
                        {"refused_topology", c.refusedTopology},
                        {"refused_geometry", c.refusedGeometry},
                        {"refused_crossing", c.refusedCrossing},
+                       {"refused_flips", c.refusedFlips},
                        {"locked_vertices", c.lockedVertices},
                        {"float32_degenerate_before", c.float32DegenerateBefore},
                        {"float32_degenerate_after", c.float32DegenerateAfter},

@@ -338,6 +338,7 @@ void addClean(CleanReport& into, const CleanReport& more) {
   into.refusedGeometry += more.refusedGeometry;
   into.refusedCrossing += more.refusedCrossing;
   into.flips += more.flips;
+  into.refusedFlips += more.refusedFlips;
   into.verticesAfter = more.verticesAfter;
   into.facesAfter = more.facesAfter;
   into.float32DegenerateAfter = more.float32DegenerateAfter;

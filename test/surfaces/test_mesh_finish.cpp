@@ -152,6 +152,25 @@ TEST_CASE("cleaning does not fold a sharp tip through itself") {
   }
 }
 
+TEST_CASE("cleaning does not flip a cap through the triangles around it") {
+  // A patch of a raw offset mesh (test/data/README.md) where, after the collapses, flipping the long edge of
+  // a cap gives two triangles within 20 degrees of each other and of the pair they replace that cross a
+  // triangle around them; the cleaning leaves that cap as it is.
+  const Mesh raw = readMesh(testing::repoTestDataDir() + "/wheel29k_offset_flip.ply");
+  REQUIRE(raw.faces.rows() == 306);
+  REQUIRE(checkMesh(raw).selfIntersections == 0);
+  CleanOptions options;
+  options.collapseLength = 7.8117e-4;
+  const CleanResult cleaned = cleanMesh(raw, options);
+  CHECK(cleaned.report.collapses > 50);
+  CHECK(cleaned.report.flips > 0);
+  CHECK(cleaned.report.refusedFlips > 0);
+  const MeshCheck c = checkMesh(cleaned.mesh);
+  CHECK(c.selfIntersections == 0);
+  CHECK(c.topology.eulerCharacteristic == analyzeTopology(raw).eulerCharacteristic);
+  CHECK(c.boundaryLoops == checkMesh(raw).boundaryLoops);
+}
+
 TEST_CASE("a pipeline surface is sound only closed, manifold, oriented and without pairs left by the projection") {
   // `fit --strict` exits with status 4 unless every mesh it writes is sound.
   Mesh tet;
