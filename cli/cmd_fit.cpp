@@ -22,6 +22,19 @@ namespace duplexfit::cli {
 
 namespace {
 
+/// What `check` would refuse in a pipeline mesh beside its topology and crossings ("" when nothing).
+std::string qualityNote(const PipelineSurface& s) {
+  std::string note;
+  if (s.quality.float32DegenerateFaces > 0) {
+    note += ", " + std::to_string(s.quality.float32DegenerateFaces) + " triangle(s) degenerate in float32";
+  }
+  if (static_cast<double>(s.quality.slivers) >
+      CheckOptions{}.maxSliverShare * static_cast<double>(s.quality.faces)) {
+    note += ", " + std::to_string(s.quality.slivers) + " slivers (more than check allows)";
+  }
+  return note;
+}
+
 int statusOf(const std::exception& e) {
   if (dynamic_cast<const InvalidArgument*>(&e) != nullptr || dynamic_cast<const UsageError*>(&e) != nullptr) return kUsage;
   if (dynamic_cast<const IoError*>(&e) != nullptr) return kIo;
@@ -273,7 +286,7 @@ int cmdFit(int argc, char** argv) {
     std::cout << "  " << (dir / meshNames[i]).string() << (o.separate && i > 0 ? "  offset " : "  iso ")
               << result.surfaces[i].offset << ": " << t.faces << " triangles, " << t.components << " component(s), "
               << (t.watertight() && t.manifold() ? "watertight 2-manifold" : "NOT watertight/manifold")
-              << crossingNote(result.surfaces[i].finish.project) << "\n";
+              << crossingNote(result.surfaces[i].finish.project) << qualityNote(result.surfaces[i]) << "\n";
   }
   if (result.shell) {
     const ShellReport& s = result.shell->report;

@@ -28,6 +28,7 @@
 #include "duplexfit/interrupter.hpp"
 #include "duplexfit/io.hpp"
 #include "duplexfit/mesh.hpp"
+#include "duplexfit/measure.hpp"
 #include "duplexfit/mesh_sampling.hpp"
 #include "duplexfit/phantom_repair.hpp"
 #include "duplexfit/point_set.hpp"
@@ -105,11 +106,14 @@ struct PipelineSurface {
   double offset = 0.0;    ///< δ of the surface (0 for the zero level), input units
   Mesh mesh;              ///< after the clean-up (small components dropped) and finishSurfaces
   MeshTopology topology;
+  /// Of the mesh as written: float32-degenerate faces and slivers (below 1°), as `check` counts them.
+  TriangleQuality quality;
   MeshFinishReport finish;  ///< cleaning, simplification and the deviation from the level set
 
   /// A closed, oriented 2-manifold with no self-intersecting triangle pair left by the projection (the pairs
-  /// its undo found and could not remove: finish.project.selfIntersectionsLeft). What `fit --strict` asks of
-  /// every mesh it writes.
+  /// its undo found and could not remove: finish.project.selfIntersectionsLeft), no triangle degenerate in
+  /// float32 and slivers on at most CheckOptions' default share of the faces (what `check` asks of them).
+  /// What `fit --strict` asks of every mesh it writes.
   bool sound() const noexcept;
 };
 

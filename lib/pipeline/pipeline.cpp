@@ -326,6 +326,27 @@ bool localNeckPassOnce(const FieldEvaluator& evaluator, const ImplicitField& fie
     why = "the spliced mesh is not a closed oriented 2-manifold";
     return false;
   }
+  // The band's triangles join the hole's loops, whose vertices the patch's cleaning may not move: one of
+  // them can be degenerate once written in float32 (joint_40k's zero level at δ = −0.02: four, and `check`
+  // refused the mesh that `fit` called sound).
+  {
+    std::size_t degenerate = 0;
+    const auto test = [&](Eigen::Index f) {
+      const Eigen::Vector3d a = sp.mesh.vertices.row(sp.mesh.faces(f, 0)).transpose();
+      const Eigen::Vector3d b = sp.mesh.vertices.row(sp.mesh.faces(f, 1)).transpose();
+      const Eigen::Vector3d c = sp.mesh.vertices.row(sp.mesh.faces(f, 2)).transpose();
+      if (float32Degenerate(a, b, c)) ++degenerate;
+    };
+    if (sp.newFaces.empty()) {
+      for (Eigen::Index f = 0; f < sp.mesh.faces.rows(); ++f) test(f);
+    } else {
+      for (const std::int64_t f : sp.newFaces) test(static_cast<Eigen::Index>(f));
+    }
+    if (degenerate > 0) {
+      why = std::to_string(degenerate) + " triangles of the patch degenerate in float32";
+      return false;
+    }
+  }
   CheckOptions co;
   co.listedPairs = 0;
   const SelfIntersections crossing = findSelfIntersections(sp.mesh, co, sp.newFaces.empty() ? nullptr : &sp.newFaces);
@@ -703,12 +724,13 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
   // Each mesh's topology is taken on a thread of its own while the self-check runs: both only read the
   // meshes, and the check leaves most of a core idle (fandisk_550k: 0.4 s of topology, serial, beside
   // 0.7 s of checking at 1.2 cores). A future's destructor waits for it, should the check throw.
+  // The triangles' quality too (what `check` counts: float32-degenerate faces and slivers).
   const auto topologyOf = [&meshes] {
-    std::vector<MeshTopology> topologies;
-    for (const Mesh& m : meshes) topologies.push_back(analyzeTopology(m));
+    std::vector<std::pair<MeshTopology, TriangleQuality>> topologies;
+    for (const Mesh& m : meshes) topologies.emplace_back(analyzeTopology(m), triangleQuality(m));
     return topologies;
   };
-  std::future<std::vector<MeshTopology>> topologies;
+  std::future<std::vector<std::pair<MeshTopology, TriangleQuality>>> topologies;
   try {
     topologies = std::async(std::launch::async, topologyOf);
   } catch (const std::system_error&) {
@@ -723,7 +745,7 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
   if (repairs && !(checkOptions.candidateEdges > 0.0)) checkOptions.candidateEdges = options.phantomRepair.candidateEdges;
   checkOptions.candidatesFirst = repairs;  // with candidates, the offsets are checked once, after the repair
   report.selfCheck = selfCheck(meshes, isos, checkPoints, checkOptions);
-  std::vector<MeshTopology> topology = topologies.get();
+  std::vector<std::pair<MeshTopology, TriangleQuality>> topology = topologies.get();
   if (repairs && !report.selfCheck.emptyComponents.empty()) {
     PhantomRepairResult repaired = repairPhantoms(device, precision, result.fields[0], *evaluator, checkPoints, checkNormals,
                                                   meshes, isos, report.selfCheck.emptyComponents, options.phantomRepair);
@@ -739,7 +761,12 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
         std::vector<char> keep(static_cast<std::size_t>(meshes[j].faces.rows()), 1);
         for (const Index f : repaired.removedFaces[j]) keep[static_cast<std::size_t>(f)] = 0;
         meshes[j] = keepFaces(meshes[j], keep);
-        topology[j] = analyzeTopology(meshes[j]);
+      }
+      for (std::size_t j = 0; j < meshes.size(); ++j) {  // faces removed or vertices moved
+        const bool removed = j < repaired.removedFaces.size() && !repaired.removedFaces[j].empty();
+        const bool moved = j < repaired.moves.size() && !repaired.moves[j].empty();
+        if (removed) topology[j].first = analyzeTopology(meshes[j]);
+        if (removed || moved) topology[j].second = triangleQuality(meshes[j]);
       }
       progress.log("phantom repair: " + std::to_string(pr.repaired) + " zero-level component(s) without input points (" +
                    std::to_string(pr.repairedFaces) + " faces) removed from the field and the mesh" +
@@ -774,7 +801,8 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
     s.field = options.separate ? i : 0;
     s.iso = options.separate ? 0.0 : isos[i];
     s.offset = isos[i];
-    s.topology = topology[i];
+    s.topology = topology[i].first;
+    s.quality = topology[i].second;
     s.mesh = std::move(meshes[i]);
     s.finish = finished[i];
     result.surfaces.push_back(std::move(s));
@@ -1013,7 +1041,8 @@ PipelineResult runOnPoints(const Device& device, PointCloudFile file, std::strin
 bool PipelineSurface::sound() const noexcept {
   const ProjectReport& p = finish.project;
   return topology.watertight() && topology.manifold() && topology.oriented() &&
-         !(p.selfIntersectionsChecked && p.selfIntersectionsLeft > 0);
+         !(p.selfIntersectionsChecked && p.selfIntersectionsLeft > 0) && quality.float32DegenerateFaces == 0 &&
+         !(static_cast<double>(quality.slivers) > CheckOptions{}.maxSliverShare * static_cast<double>(quality.faces));
 }
 
 bool PipelineReport::converged() const noexcept {

@@ -549,7 +549,12 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
     Json m{{"file", meshNames[i]},
            {"iso", s.iso},
            {"field", fieldNames[s.field]},
-           {"topology", topologyJson(s.topology)}};
+           {"topology", topologyJson(s.topology)},
+           // What `check` counts beside the topology; sound is what `fit --strict` asks of the mesh.
+           {"quality", Json{{"float32_degenerate", s.quality.float32DegenerateFaces},
+                            {"slivers", s.quality.slivers},
+                            {"min_angle", s.quality.minAngle}}},
+           {"sound", s.sound()}};
     addFinishReport(m, s.finish);
     meshes.push_back(std::move(m));
   }

@@ -188,6 +188,18 @@ TEST_CASE("a pipeline surface is sound only closed, manifold, oriented and witho
   CHECK_FALSE(s.sound());
   s.finish.project.selfIntersectionsChecked = false;  // not checked: nothing known to be left
   CHECK(s.sound());
+  // What `check` refuses beside the topology: a triangle degenerate in float32, slivers beyond the share.
+  s.quality = triangleQuality(tet);
+  CHECK(s.sound());
+  s.quality.float32DegenerateFaces = 1;
+  CHECK_FALSE(s.sound());
+  s.quality.float32DegenerateFaces = 0;
+  s.quality.faces = 1000;
+  s.quality.slivers = 1;  // 0.1%: allowed
+  CHECK(s.sound());
+  s.quality.slivers = 2;
+  CHECK_FALSE(s.sound());
+  s.quality = TriangleQuality{};
   s.finish.project = ProjectReport{};
   Mesh open = tet;
   open.faces.conservativeResize(3, 3);
