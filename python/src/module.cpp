@@ -653,11 +653,16 @@ PYBIND11_MODULE(_duplexfit, m) {
               d["vertices"] = fromPoints(s.mesh.vertices);
               d["faces"] = fromFaces(s.mesh.faces);
               d["topology"] = topologyDict(s.topology);
+              d["float32_degenerate"] = s.quality.float32DegenerateFaces;
+              d["slivers"] = s.quality.slivers;
+              d["sound"] = s.sound();
               surfaces.append(d);
             }
             return surfaces;
           },
-          "One dict per surface: offset, iso, field (index), vertices, faces, topology.")
+          "One dict per surface: offset, iso, field (index), vertices, faces, topology, float32_degenerate, "
+          "slivers, sound (what `fit --strict` asks: closed, oriented, manifold, no crossing left, what `check` "
+          "asks of the triangles).")
       .def_property_readonly(
           "report",
           [](const PyPipelineResult& r) {

@@ -307,6 +307,8 @@ class Pipeline(unittest.TestCase):
             s = result.surfaces[1]
             self.assertEqual(s["offset"], DELTA)
             self.assertTrue(s["topology"]["watertight"])
+            self.assertEqual(s["float32_degenerate"], 0)
+            self.assertTrue(s["sound"])
             report = result.report
             self.assertEqual(report["points"], 1500)
             self.assertEqual(report["mode"], "duplex")
