@@ -269,10 +269,6 @@ class CreasePlanes {
   std::unique_ptr<NeighborIndex> tree_;
 };
 
-/// How far (in steps) a disc's plane may lie from a crease-rejected candidate's medial point and still bound
-/// its target: the bisection leaves it at (1 − η) to 1 step from the nearest one.
-constexpr double kPlaneReach = 1.5;
-
 // Candidates q = p_i + step·ν_i for points with a non-zero normal, kept when the nearest point p_j of P
 // other than p_i is at least |step|(1 − η) away (§3.1) and, with `sideTest`, q lies on the step's side of
 // p_j's tangent plane: sign(step)·(q − p_j)·ν_j > 0. The side test (ours, optional) rejects companions
@@ -298,6 +294,10 @@ constexpr double kPlaneReach = 1.5;
 // stay dropped: moved, they made thin parts' offsets worse on balance (docs/method.md §3.1). A medial point
 // that the test rejects at half its own step is dropped: the distance test that places medial points does
 // not see the unsampled face either.
+/// How far (in steps) a disc's plane may lie from a crease-rejected candidate's medial point and still bound
+/// its target: the bisection leaves it at (1 − η) to 1 step from the nearest one.
+constexpr double kPlaneReach = 1.5;
+
 Companions validCompanions(const Points& points, const Points& normals, NearestOther& nearestOther, double step,
                            double eta, bool sideTest, bool medial, double minMedial, CreasePlanes* creases,
                            bool creaseMedial) {
