@@ -146,25 +146,10 @@ class CreasePlanes {
   /// set built for a call that has only such candidates.
   void reject(const NeighborIndex& all, const Points& qs, const std::vector<Eigen::Index>& src,
               const std::vector<double>& steps, std::vector<char>& rejected) {
-    std::vector<double> gap;
-    planes(all, qs, src, steps, kPlaneFraction, true, gap);
     rejected.assign(src.size(), 0);
-    for (std::size_t k = 0; k < gap.size(); ++k) rejected[k] = std::isfinite(gap[k]) ? 1 : 0;
-  }
-
-  /// gap[k]: the least signed distance sign(step)·(q − p_j)·ν_j of candidate k to the tangent plane of a
-  /// disc that meets the conditions above and has it below fraction·|step| (negative: behind the plane),
-  /// +∞ when none does. `passed`: every candidate passed the distance test, so the unreachable ones are
-  /// skipped (valid for fraction = 1/2 only) and the first such distance found is given (enough to reject). On a convex edge the least distance to the discs' planes is
-  /// the distance to the surface there, which the medial points of rejected candidates take as target.
-  void planes(const NeighborIndex& all, const Points& qs, const std::vector<Eigen::Index>& src,
-              const std::vector<double>& steps, double fraction, bool passed, std::vector<double>& gap) {
-    gap.assign(src.size(), std::numeric_limits<double>::infinity());
     if (src.empty()) return;
-    const bool skip = passed && fraction == kPlaneFraction;
     if (!built_) {
-      if (skip && radiusCap_ > 0.0 &&
-          std::none_of(steps.begin(), steps.end(), [this](double s) { return reachable(s, radiusCap_); })) {
+      if (radiusCap_ > 0.0 && std::none_of(steps.begin(), steps.end(), [this](double s) { return reachable(s, radiusCap_); })) {
         return;
       }
       build(all);
@@ -177,27 +162,24 @@ class CreasePlanes {
       double reach = 0.0;
       for (Eigen::Index k = b0; k < b0 + count; ++k) {
         const double s = steps[static_cast<std::size_t>(k)];
-        if (!skip || reachable(s, cap_)) reach = std::max(reach, std::abs(s));
+        if (reachable(s, cap_)) reach = std::max(reach, std::abs(s));
       }
       if (!(reach > 0.0)) continue;
-      // A disc counts only with along < fraction·|step| and across ≤ ρ_j: |q − p_j|² = along² + across² <
-      // max(fraction, 1)²·step² + ρ_j² (the pair condition puts q at most |step| behind p_j's plane: q = p +
-      // step·ν_p, p on q's side of it).
-      const double farthest = std::max(fraction, 1.0) * reach;
+      // A rejecting p_j has |q − p_j|² = along² + across² < step² + ρ_j²: the pair condition puts q at
+      // most |step| behind p_j's plane (q = p + step·ν_p, p on q's side of it).
       const NeighborLists hits =
-          tree_->radiusSearchUnsorted(qs.middleRows(b0, count), std::sqrt(farthest * farthest + cap_ * cap_), interrupter_);
+          tree_->radiusSearchUnsorted(qs.middleRows(b0, count), std::sqrt(reach * reach + cap_ * cap_), interrupter_);
 #pragma omp parallel for schedule(dynamic, 256)
       for (Eigen::Index k = 0; k < count; ++k) {
         const auto uk = static_cast<std::size_t>(b0 + k);
         const Eigen::Index i = src[uk];
         const double step = steps[uk];
-        if (step == 0.0 || (skip && !reachable(step, cap_))) continue;
+        if (step == 0.0 || !reachable(step, cap_)) continue;
         const double sign = step > 0.0 ? 1.0 : -1.0;
         const Eigen::Vector3d p = points_.row(i).transpose();
         const Eigen::Vector3d ni = normals_.row(i).transpose();
         const Eigen::Vector3d q = qs.row(b0 + k).transpose();
         const Eigen::Vector3d v = q - p;
-        double least = std::numeric_limits<double>::infinity();
         for (auto e = hits.offsets[static_cast<std::size_t>(k)]; e < hits.offsets[static_cast<std::size_t>(k) + 1]; ++e) {
           const auto c = static_cast<std::size_t>(hits.indices[static_cast<std::size_t>(e)]);
           const Eigen::Index j = rows_[c];
@@ -208,13 +190,12 @@ class CreasePlanes {
           if (!((pj - p).dot(v) > 0.0)) continue;       // p_j on q's side of p's plane
           if (sign * (p - pj).dot(nj) < 0.0) continue;  // p on q's side of p_j's plane (or on it)
           const double along = (q - pj).dot(nj);
-          if (!(sign * along < fraction * std::abs(step)) || !(sign * along < least)) continue;
+          if (!(sign * along < kPlaneFraction * std::abs(step))) continue;
           const Eigen::Vector3d across = (q - pj) - along * nj;
           if (across.squaredNorm() > radius_[c] * radius_[c]) continue;
-          least = sign * along;
-          if (passed) break;  // one is enough to reject
+          rejected[uk] = 1;
+          break;
         }
-        gap[uk] = least;
       }
     }
   }
@@ -285,22 +266,10 @@ class CreasePlanes {
 // s ≥ minMedial·|step|. The δ level is then constrained exactly where the plain test leaves it free.
 //
 // With `creases` (may be null), candidates that pass are also put to the crease-plane test (CreasePlanes
-// above), and so are the medial points. With `medial` and `creaseMedial` (the off-surface points), a
-// candidate the crease-plane test rejects is moved back as a distance-rejected one is, to the largest s at
-// which it also keeps (1 − η)s from every disc's plane that the test looks at, and takes the least distance
-// to those planes as a bound of its target (on the convex edges the test looks at, the distance to the
-// surface); one that no disc reaches any more is dropped. rocker_arm_40k's off-surface points in a groove
-// 0.005 wide, dropped, had let the zero level close over the groove's tip. The offsets' rejected candidates
-// stay dropped: moved, they made thin parts' offsets worse on balance (docs/method.md §3.1). A medial point
-// that the test rejects at half its own step is dropped: the distance test that places medial points does
-// not see the unsampled face either.
-/// How far (in steps) a disc's plane may lie from a crease-rejected candidate's medial point and still bound
-/// its target: the bisection leaves it at (1 − η) to 1 step from the nearest one.
-constexpr double kPlaneReach = 1.5;
-
+// above), and so are the medial points; those it rejects are dropped, not moved: the distance test that
+// places medial points does not see the unsampled face either.
 Companions validCompanions(const Points& points, const Points& normals, NearestOther& nearestOther, double step,
-                           double eta, bool sideTest, bool medial, double minMedial, CreasePlanes* creases,
-                           bool creaseMedial) {
+                           double eta, bool sideTest, bool medial, double minMedial, CreasePlanes* creases) {
   Companions out;
   std::vector<Eigen::Index> source;
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
@@ -324,13 +293,9 @@ Companions validCompanions(const Points& points, const Points& normals, NearestO
   }
   std::vector<char> keep(source.size(), 0);
   std::vector<std::size_t> rejected;
-  std::vector<char> creaseRejected;  // per entry of `rejected`: by the crease-plane test
   for (std::size_t k = 0; k < source.size(); ++k) {
     bool ok = sideTest ? dist[k] >= limit : near[k] == 0;
-    if (!ok) {
-      rejected.push_back(k);
-      creaseRejected.push_back(0);
-    }
+    if (!ok) rejected.push_back(k);
     if (sideTest && ok && other[k] >= 0 && normals.row(other[k]).squaredNorm() > 0.0) {
       ok = sign * (q.row(static_cast<Eigen::Index>(k)) - points.row(other[k])).dot(normals.row(other[k])) > 0.0;
     }
@@ -350,11 +315,7 @@ Companions validCompanions(const Points& points, const Points& normals, NearestO
     std::vector<char> off;
     creases->reject(nearestOther.tree(), kq, ksrc, std::vector<double>(kept.size(), step), off);
     for (std::size_t r = 0; r < kept.size(); ++r) {
-      if (off[r] == 0) continue;
-      keep[kept[r]] = 0;
-      if (!creaseMedial) continue;
-      rejected.push_back(kept[r]);
-      creaseRejected.push_back(1);
+      if (off[r] != 0) keep[kept[r]] = 0;
     }
   }
   for (std::size_t k = 0; k < source.size(); ++k) {
@@ -374,16 +335,6 @@ Companions validCompanions(const Points& points, const Points& normals, NearestO
   for (std::size_t r = 0; r < m; ++r) src[r] = source[rejected[r]];
   Points mq(static_cast<Eigen::Index>(m), 3);
   std::vector<double> radius(m);
-  // Those the crease-plane test rejected must also keep (1 − η)s from the discs' planes (a handful: 332
-  // off-surface points of fandisk_550k's 550k).
-  std::vector<std::size_t> planar;
-  for (std::size_t r = 0; r < m; ++r) {
-    if (creaseRejected[r] != 0) planar.push_back(r);
-  }
-  Points pq(static_cast<Eigen::Index>(planar.size()), 3);
-  std::vector<Eigen::Index> psrc(planar.size());
-  std::vector<double> psteps(planar.size()), gap;
-  for (std::size_t t = 0; t < planar.size(); ++t) psrc[t] = src[planar[t]];
   for (int iteration = 0; iteration < 6; ++iteration) {
     for (std::size_t r = 0; r < m; ++r) {
       const double s = 0.5 * (lo[r] + hi[r]);
@@ -391,16 +342,6 @@ Companions validCompanions(const Points& points, const Points& normals, NearestO
       radius[r] = s * (1.0 - eta);
     }
     nearestOther.near(mq, src, radius, step, near);
-    if (!planar.empty()) {
-      for (std::size_t t = 0; t < planar.size(); ++t) {
-        pq.row(static_cast<Eigen::Index>(t)) = mq.row(static_cast<Eigen::Index>(planar[t]));
-        psteps[t] = sign * 0.5 * (lo[planar[t]] + hi[planar[t]]);
-      }
-      creases->planes(nearestOther.tree(), pq, psrc, psteps, 1.0 - eta, false, gap);
-      for (std::size_t t = 0; t < planar.size(); ++t) {
-        if (std::isfinite(gap[t])) near[planar[t]] = 1;
-      }
-    }
     for (std::size_t r = 0; r < m; ++r) {
       const double s = 0.5 * (lo[r] + hi[r]);
       (near[r] == 0 ? lo[r] : hi[r]) = s;
@@ -411,23 +352,10 @@ Companions validCompanions(const Points& points, const Points& normals, NearestO
   }
   nearestOther(mq, src, step, dist, other);
   std::vector<char> off(m, 0);
-  std::vector<double> plane(m, std::numeric_limits<double>::infinity());
   if (creases != nullptr) {
     std::vector<double> steps(m);
     for (std::size_t r = 0; r < m; ++r) steps[r] = sign * lo[r];
     creases->reject(nearestOther.tree(), mq, src, steps, off);
-    // The crease-rejected ones' targets: at most the least distance to a disc's plane (on a convex edge,
-    // the distance to the surface there), as at most the nearest sample's. One that no disc reaches any
-    // more is dropped: it left the discs, not the unsampled face they stand for.
-    for (std::size_t t = 0; t < planar.size(); ++t) {
-      pq.row(static_cast<Eigen::Index>(t)) = mq.row(static_cast<Eigen::Index>(planar[t]));
-      psteps[t] = sign * lo[planar[t]];
-    }
-    creases->planes(nearestOther.tree(), pq, psrc, psteps, kPlaneReach, false, gap);
-    for (std::size_t t = 0; t < planar.size(); ++t) {
-      plane[planar[t]] = gap[t];
-      if (!std::isfinite(gap[t])) off[planar[t]] = 1;
-    }
   }
   std::vector<Eigen::Vector3d> pos;
   for (std::size_t r = 0; r < m; ++r) {
@@ -437,7 +365,7 @@ Companions validCompanions(const Points& points, const Points& normals, NearestO
       continue;
     }
     pos.push_back(mq.row(static_cast<Eigen::Index>(r)).transpose());
-    out.medialTargets.push_back(sign * std::min({lo[r], dist[r], plane[r]}));
+    out.medialTargets.push_back(sign * std::min(lo[r], dist[r]));
     out.medialSources.push_back(src[r]);
   }
   out.medial.resize(static_cast<Eigen::Index>(pos.size()), 3);
@@ -521,7 +449,7 @@ std::vector<double> worldOffsets(const std::vector<double>& offsets, bool relati
 Points validOffsetPoints(const Points& points, const Points& normals, double step, double eta, bool sideTest,
                          std::vector<Eigen::Index>& sources) {
   NearestOther index(points, nullptr);
-  Companions c = validCompanions(points, normals, index, step, eta, sideTest, false, 0.0, nullptr, false);
+  Companions c = validCompanions(points, normals, index, step, eta, sideTest, false, 0.0, nullptr);
   sources = std::move(c.sources);
   return std::move(c.positions);
 }
@@ -564,7 +492,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   };
   for (const double delta : options.offsets) {
     Companions c = validCompanions(points, normals, index, delta, options.validityTolerance, options.tangentSideTest,
-                                   options.medial, options.minMedialFraction, creases.get(), false);
+                                   options.medial, options.minMedialFraction, creases.get());
     blockTargets.push_back(Eigen::VectorXd::Constant(c.positions.rows(), delta));
     blockSources.push_back(c.sources);
     out.offsetCandidates.push_back(c.candidates);
@@ -578,7 +506,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   else if (options.offSurfaceSide != 0) sides = {options.offSurfaceSide};
   for (const int side : sides) {
     Companions c = validCompanions(points, normals, index, side * d, options.validityTolerance, options.tangentSideTest,
-                                   options.medial, options.minMedialFraction, creases.get(), true);
+                                   options.medial, options.minMedialFraction, creases.get());
     blockTargets.push_back(Eigen::VectorXd::Constant(c.positions.rows(), side * d));
     blockSources.push_back(c.sources);
     out.offSurfaceCandidates += c.candidates;
