@@ -83,6 +83,28 @@ double notchedDistance(const Eigen::Vector3d& q) {
   return best;
 }
 
+// Samples of the notched cube: 21,000 drawn on the cube's faces (those in the notch dropped) and 3,000 on the
+// notch's walls x = 0, y = 0, z = 0 (other two coordinates in [0, h]; outward normal +e_k).
+void notchedCube(Points& points, Points& nu) {
+  Points cube, cubeNu;
+  sampleCube(21000, 11u, [](const Sample& s) { return (s.p.array() >= 0.0).all(); }, cube, cubeNu);
+  std::mt19937 rng(12u);
+  std::uniform_int_distribution<int> wall(0, 2);
+  std::uniform_real_distribution<double> coordinate(0.0, kHalf);
+  const Eigen::Index walls = 3000;
+  points.resize(cube.rows() + walls, 3);
+  nu.resize(cube.rows() + walls, 3);
+  points.topRows(cube.rows()) = cube;
+  nu.topRows(cube.rows()) = cubeNu;
+  for (Eigen::Index i = 0; i < walls; ++i) {
+    const int k = wall(rng);
+    Eigen::Vector3d p(coordinate(rng), coordinate(rng), coordinate(rng));
+    p[k] = 0.0;
+    points.row(cube.rows() + i) = p.transpose();
+    nu.row(cube.rows() + i) = -Eigen::Vector3d::Unit(k).transpose();
+  }
+}
+
 detail::ConstraintOptions offsetOnly(double delta, bool creaseTest) {
   detail::ConstraintOptions o;
   o.offsets = {delta};
@@ -137,23 +159,8 @@ TEST_SUITE("fit") {
   TEST_CASE("crease-plane test: on a notched cube it rejects nothing valid, at either sign of the offset") {
     // The notch's three walls meet the cube's faces at concave edges; extended, their planes cut through
     // the solid beside the notch, where the pair condition must keep them from rejecting anything.
-    Points cube, cubeNu;
-    sampleCube(21000, 11u, [](const Sample& s) { return (s.p.array() >= 0.0).all(); }, cube, cubeNu);
-    // The notch's walls x = 0, y = 0, z = 0 (other two coordinates in [0, h]), outward normal +e_k.
-    std::mt19937 rng(12u);
-    std::uniform_int_distribution<int> wall(0, 2);
-    std::uniform_real_distribution<double> coordinate(0.0, kHalf);
-    const Eigen::Index walls = 3000;
-    Points points(cube.rows() + walls, 3), nu(cube.rows() + walls, 3);
-    points.topRows(cube.rows()) = cube;
-    nu.topRows(cube.rows()) = cubeNu;
-    for (Eigen::Index i = 0; i < walls; ++i) {
-      const int k = wall(rng);
-      Eigen::Vector3d p(coordinate(rng), coordinate(rng), coordinate(rng));
-      p[k] = 0.0;
-      points.row(cube.rows() + i) = p.transpose();
-      nu.row(cube.rows() + i) = -Eigen::Vector3d::Unit(k).transpose();
-    }
+    Points points, nu;
+    notchedCube(points, nu);
     for (const double delta : {0.01, 0.025, -0.025}) {
       CAPTURE(delta);
       const auto plain = offsetCentres(detail::buildConstraints(points, nu, offsetOnly(delta, false)));
@@ -173,6 +180,37 @@ TEST_SUITE("fit") {
       MESSAGE("delta " << delta << ": " << dropped << " dropped, " << droppedInvalid << " of them with a target 1% or more above the true distance");
       if (delta > 0.0) CHECK(dropped > 0);  // the cube's convex edges have their own unsampled stretches
     }
+  }
+
+  TEST_CASE("crease-plane test: off-surface points are not put to it") {
+    // Outside the notched cube's notch (an empty box, convex: the test's case), the outside off-surface points
+    // of a wall next to the notch's inner edges lie within half their step of another wall's plane where the
+    // random samples leave a gap; they stay, with or without the test (pinion_53k: dropped at its corners,
+    // they let a speck of phantom solid form outside one). The offsets of the same cloud do lose some.
+    Points points, nu;
+    notchedCube(points, nu);
+    detail::ConstraintOptions o;
+    o.offsets = {};
+    o.offSurfaceSide = -1;
+    o.offSurfaceDistance = 0.02;
+    o.medial = true;
+    o.creaseRadiusCap = 0.04;
+    o.creaseTest = false;
+    const auto plain = detail::buildConstraints(points, nu, o);
+    o.creaseTest = true;
+    const auto tested = detail::buildConstraints(points, nu, o);
+    CHECK(tested.offSurfaceKept == plain.offSurfaceKept);
+    CHECK(tested.offSurfaceMedial == plain.offSurfaceMedial);
+    REQUIRE(tested.centres.rows() == plain.centres.rows());
+    CHECK(tested.centres == plain.centres);
+    CHECK(tested.targets == plain.targets);
+    o.offsets = {-0.02};  // outward offsets of the same size: some rejected by the test
+    o.offSurfaceSide = 0;
+    o.creaseTest = false;
+    const auto plainOffsets = detail::buildConstraints(points, nu, o);
+    o.creaseTest = true;
+    const auto testedOffsets = detail::buildConstraints(points, nu, o);
+    CHECK(testedOffsets.offsetKept[0] < plainOffsets.offsetKept[0]);
   }
 
   TEST_CASE("crease-plane test: a fit asks for it at its three finest levels only, with discs of at most 2 sigma") {
