@@ -59,12 +59,12 @@ struct FitOptions {
   /// valid points at coarse levels where the curvature between cell centroids exceeds δ (torus_10k,
   /// δ = −0.05: max |f − δ| on the exact offset 7.4% → 14% of |δ|, over a sampling hole).
   bool sideTest = false;
-  /// Crease-plane test (ours, docs/method.md §3.1, "Crease-plane test"): also reject an offset,
-  /// off-surface or medial point closer than half its step to the tangent plane of a sample across a
-  /// convex sharp edge (within that sample's disc of 1.5 × its 8th-neighbour distance). The distance test
-  /// sees only samples: where random sampling leaves a strip along an edge empty, it keeps companions
-  /// that lie almost on the unsampled face and pulls the δ level onto the surface there (cube_24k,
-  /// δ = 0.02: offset points 99% of δ off, a tube of genus 1 along an edge).
+  /// Crease-plane test (ours, docs/method.md §3.1, "Crease-plane test"): also reject an offset point or an
+  /// offset's medial point (not an off-surface point) closer than half its step to the tangent plane of a
+  /// sample across a convex sharp edge (within that sample's disc of 1.5 × its 8th-neighbour distance). The
+  /// distance test sees only samples: where random sampling leaves a strip along an edge empty, it keeps
+  /// companions that lie almost on the unsampled face and pulls the δ level onto the surface there
+  /// (cube_24k, δ = 0.02: offset points 99% of δ off, a tube of genus 1 along an edge).
   bool creaseTest = true;
   /// Sign anchors (ours, docs/method.md "Sign of empty space"): at levels 1 … M − anchorSkipFinest (M − 1), centres
   /// on a σ_k/2 grid in empty space (3σ_k/4 … 2σ_k from the samples; level 1 everywhere in the enlarged box)

@@ -508,7 +508,7 @@ LevelConstraints buildConstraints(const Points& points, const Points& normals, c
   // ones it dropped (σ_k/10 from their samples, within half of that of the other face's plane) had held the
   // zero level in, and without them it left a speck of phantom solid outside a corner at δ = 0.025 and
   // 0.01 (4 and 8 faces, 0.0087 from the nearest sample; the phantom repair refused it). Without the test
-  // on them the zero levels of docs/fidelity.md lose at most 3% of their mean distance to the truth.
+  // on them the zero levels of docs/fidelity.md lose at most 5% of their mean distance to the truth.
   for (const int side : sides) {
     Companions c = validCompanions(points, normals, index, side * d, options.validityTolerance, options.tangentSideTest,
                                    options.medial, options.minMedialFraction, nullptr);
