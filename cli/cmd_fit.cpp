@@ -28,8 +28,7 @@ std::string qualityNote(const PipelineSurface& s) {
   if (s.quality.float32DegenerateFaces > 0) {
     note += ", " + std::to_string(s.quality.float32DegenerateFaces) + " triangle(s) degenerate in float32";
   }
-  if (static_cast<double>(s.quality.slivers) >
-      CheckOptions{}.maxSliverShare * static_cast<double>(s.quality.faces)) {
+  if (s.tooManySlivers()) {
     note += ", " + std::to_string(s.quality.slivers) + " slivers (more than check allows)";
   }
   return note;

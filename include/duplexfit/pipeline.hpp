@@ -115,6 +115,10 @@ struct PipelineSurface {
   /// float32 and slivers on at most CheckOptions' default share of the faces (what `check` asks of them).
   /// What `fit --strict` asks of every mesh it writes.
   bool sound() const noexcept;
+  /// Slivers on more than CheckOptions' default share of the faces (what `check` refuses).
+  bool tooManySlivers() const noexcept {
+    return static_cast<double>(quality.slivers) > CheckOptions{}.maxSliverShare * static_cast<double>(quality.faces);
+  }
 };
 
 /// The printable shell of a pipeline run (PipelineOptions::shell).

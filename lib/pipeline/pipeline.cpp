@@ -1042,7 +1042,7 @@ bool PipelineSurface::sound() const noexcept {
   const ProjectReport& p = finish.project;
   return topology.watertight() && topology.manifold() && topology.oriented() &&
          !(p.selfIntersectionsChecked && p.selfIntersectionsLeft > 0) && quality.float32DegenerateFaces == 0 &&
-         !(static_cast<double>(quality.slivers) > CheckOptions{}.maxSliverShare * static_cast<double>(quality.faces));
+         !tooManySlivers();
 }
 
 bool PipelineReport::converged() const noexcept {
