@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <map>
 #include <unordered_map>
 #include <unordered_set>
@@ -16,6 +17,9 @@ namespace duplexfit::detail {
 namespace {
 
 using Vec = Eigen::Vector3d;
+
+/// Rounds of widening a hole whose rim pinches at a vertex (spliceZone).
+constexpr int kPinchPasses = 4;
 
 /// Zip steps ((n + 1)(m + 1) for loops of n and m vertices) at most: 16M, 128 MB of dynamic programming.
 constexpr std::size_t kMaxZipSteps = std::size_t{1} << 24;
@@ -457,8 +461,12 @@ SpliceResult spliceZone(const Mesh& finished, const Mesh& extracted, const GridS
   // The hole's loops, as the kept faces run them (each edge of a kept face whose twin was removed).
   // (The kept faces' own boundary would also give the far side of their ring around the hole.) Only the
   // kept faces with a corner on a removed face can have such an edge.
+  // A rim that pinches at a vertex (two of the hole's boundary edges start there: the zone's faces meet the
+  // kept ones at a corner only, as around the phantom repair's void in wheel_29k's offset) is no set of
+  // simple loops: the kept faces around such a corner go too, a few times over at most.
   std::vector<Eigen::Index> rim;
-  {
+  for (int pass = 0;; ++pass) {
+    rim.clear();
     std::vector<char> onRemoved(static_cast<std::size_t>(finished.vertices.rows()), 0);
     for (const Eigen::Index f : removed) {
       for (int k = 0; k < 3; ++k) onRemoved[static_cast<std::size_t>(finished.faces(f, k))] = 1;
@@ -469,6 +477,35 @@ SpliceResult spliceZone(const Mesh& finished, const Mesh& extracted, const GridS
         rim.push_back(f);
       }
     }
+    if (pass == kPinchPasses) break;
+    const std::vector<std::uint64_t> removedEdges = directedEdges(finished, removed);
+    std::unordered_map<Index, int> starts;
+    for (const Eigen::Index f : rim) {
+      for (int k = 0; k < 3; ++k) {
+        const Index a = finished.faces(f, k), b = finished.faces(f, (k + 1) % 3);
+        if (std::binary_search(removedEdges.begin(), removedEdges.end(), edgeKey(b, a))) ++starts[a];
+      }
+    }
+    std::unordered_set<Index> pinch;
+    for (const auto& [v, n] : starts) {
+      if (n > 1) pinch.insert(v);
+    }
+    if (pinch.empty()) break;
+    std::vector<Eigen::Index> more;
+    for (const Eigen::Index f : rim) {
+      for (int k = 0; k < 3; ++k) {
+        if (pinch.count(finished.faces(f, k)) != 0) {
+          more.push_back(f);
+          break;
+        }
+      }
+    }
+    std::vector<Eigen::Index> stay, grown;
+    std::set_difference(kept.begin(), kept.end(), more.begin(), more.end(), std::back_inserter(stay));
+    std::merge(removed.begin(), removed.end(), more.begin(), more.end(), std::back_inserter(grown));
+    kept = std::move(stay);
+    removed = std::move(grown);
+    r.removedFaces = removed.size();
   }
   const std::vector<std::vector<Index>> holes =
       loopsAlong(finished, rim, directedEdges(finished, removed), true, r.why);
