@@ -30,6 +30,14 @@ struct PhantomRepairOptions {
   double candidateEdges = 1.0;
   /// The anchors' grid spacing, × σ_M (the finest level's support).
   double anchorSpacing = 0.25;
+  /// The anchors' grid covers the component's box enlarged by this × σ_M on every side: the phantom's pull
+  /// on f reaches about σ_M beyond it (wheel_29k's void at δ = 0.01 left a bump of the offset 0.005 deep
+  /// with σ_M/4).
+  double boxMargin = 0.5;
+  /// Anchors whose distance to the samples lies within this × σ_M of an offset |δ_j| are skipped (the
+  /// fit's own anchors keep σ_M/2: at σ_M/2 no anchor pinned the part of wheel_29k's void's bump next to
+  /// the offset).
+  double offsetClearance = 0.125;
   /// Anchors lie at least this fraction of the component's distance to the input points from every point.
   double minDistanceFraction = 0.5;
   /// Input points within this × σ_M of an anchor keep f (with their offset and off-surface companions).
@@ -39,6 +47,11 @@ struct PhantomRepairOptions {
   /// The other meshes' vertices within σ_M of a correction centre follow their level sets: by at most this
   /// fraction of the largest side of the input's box (five times the neck pass's deviation limit).
   double maxChange = 5e-3;
+  /// When a mesh's vertices near the correction cannot follow their level set (a path that finds none, a
+  /// face that would turn: the level set there changed its shape, as around a phantom void's offset),
+  /// hand that mesh back for extraction again around the correction (PhantomRepairResult::reextract)
+  /// rather than refuse the phantom. The pipeline does; false keeps every result a set of moves.
+  bool reextractMeshes = false;
 };
 
 struct PhantomRepairReport {
@@ -48,12 +61,15 @@ struct PhantomRepairReport {
   std::size_t offsetFaces = 0;   ///< faces of the offset meshes' components inside them, removed too
   std::size_t notPhantom = 0;    ///< candidates whose anchors all agree with f's sign (left alone)
   std::size_t anchors = 0;       ///< correction centres with a signed-distance target
-  std::size_t keepPoints = 0;    ///< correction centres that keep f where it was
+  std::size_t keepPoints = 0;    ///< correction centres that keep f where it was (or get the fit's value back)
+  std::size_t restored = 0;      ///< of them, those the phantom had pulled off the fit's value, which get it back
   double maxChange = 0.0;        ///< the largest move of the other meshes' vertices near the correction (input units)
   double maxDeviation = 0.0;     ///< their largest |f − iso|/|∇f| after it (input units)
   int iterations = 0;            ///< CG iterations over the rounds
   int rounds = 0;                ///< solves (a node where f kept the phantom's sign is an anchor of the next)
   std::size_t refusedPhantoms = 0; ///< phantoms left as they were (a check failed at their correction)
+  std::size_t reextracted = 0;   ///< meshes handed back for extraction again around the correction
+  double reextractSeconds = 0.0; ///< the caller's extraction again (the pipeline sets it; not in `seconds`)
   std::string firstRefusal;      ///< why the first phantom left out was (the others were repaired without it)
   std::string refused;           ///< empty, or why the field was left as it was (no phantom repaired)
   double seconds = 0.0;
@@ -70,6 +86,10 @@ struct PhantomRepairResult {
   /// Per mesh: the vertices near the correction moved onto their level sets of the repaired field (index,
   /// new position), to be applied before removing the faces.
   std::vector<std::vector<std::pair<Index, Eigen::Vector3d>>> moves;
+  /// Per mesh (with PhantomRepairOptions::reextractMeshes): empty, or the positions (input units) of its
+  /// vertices within σ_M of a correction centre, where the caller extracts its level set of the repaired
+  /// field again (the mesh then has no moves). The caller must refuse the whole repair when it cannot.
+  std::vector<std::vector<Eigen::Vector3d>> reextract;
 };
 
 /// Repairs the phantoms among `candidates` (components of meshes[0] without input points near them: the

@@ -244,70 +244,70 @@ constexpr int kBoxMargin = 1;
 /// Boxes (separate clusters of the zone) at most; more leave the round to the whole-mesh pass.
 constexpr std::size_t kMaxBoxes = 64;
 
-/// The neck pass's local replacement on `mesh` (see neckPass): the faces around `zoneCells` are replaced by
-/// the level set extracted with `cells` refined one level more. True when kept (mesh, finish's deviation and
-/// r's counts updated); false with `why` otherwise, nothing changed. `before`: mesh's topology. In the last
-/// round the result must be within the deviation limit (the whole extraction is the caller's last resort).
-bool localNeckPassOnce(const FieldEvaluator& evaluator, const ImplicitField& field, const GridSpec& grid, double iso,
-                       const SurfaceOptions& surface, double minComponent, const std::vector<std::array<int, 3>>& cells,
-                       const std::vector<std::array<int, 3>>& zoneCells, const MeshTopology& before, bool lastRound,
-                       PolygonizeOptions po, Mesh& mesh, MeshFinishReport& finish, NeckPassReport& r, std::string& why,
-                       const std::string& label, const Progress& progress) {
-  const std::vector<std::int64_t> inner = detail::dilatedCells(grid, zoneCells, kSpliceInner);
-  const std::vector<std::int64_t> outer = detail::dilatedCells(grid, zoneCells, kSpliceInner + kSpliceGap);
-  // The level set extracted again in boxes of the grid's lattice around the clusters of the zone (a box
-  // per cluster, kBoxMargin cells around it, overlapping boxes merged): the patch is taken from the inner
-  // zone, well inside each box, so the boxes' own borders do not matter.
-  const Mesh extracted = [&] {
-    const std::vector<std::array<int, 6>> boxes = detail::zoneBoxes(grid, outer, kBoxMargin);
-    if (boxes.size() > kMaxBoxes) {
-      throw InvalidArgument(std::to_string(boxes.size()) + " separate zones (more than " + std::to_string(kMaxBoxes) + ")");
+/// The level set {f = iso} extracted again in boxes of the grid's lattice around the clusters of `outer`
+/// (sorted linear cell ids; a box per cluster, kBoxMargin cells around it, overlapping boxes merged), with
+/// `deeper` (cells of `grid`) refined one level more; the boxes' meshes as one. The patch a splice takes
+/// from it lies in the inner zone, well inside each box, so the boxes' own borders do not matter.
+Mesh extractAround(const FieldEvaluator& evaluator, const GridSpec& grid, const std::vector<std::int64_t>& outer,
+                   double iso, const PolygonizeOptions& po, const std::vector<std::array<int, 3>>& deeper,
+                   const Progress& progress) {
+  const std::vector<std::array<int, 6>> boxes = detail::zoneBoxes(grid, outer, kBoxMargin);
+  if (boxes.size() > kMaxBoxes) {
+    throw InvalidArgument(std::to_string(boxes.size()) + " separate zones (more than " + std::to_string(kMaxBoxes) + ")");
+  }
+  const Eigen::Vector3d h = grid.cellSize();
+  Mesh all;
+  std::vector<Mesh> parts;
+  for (const auto& b : boxes) {
+    GridSpec sub;
+    Eigen::Vector3d lo, hi;
+    for (int a = 0; a < 3; ++a) {
+      lo(a) = grid.box.min()(a) + h(a) * b[static_cast<std::size_t>(a)];
+      hi(a) = grid.box.min()(a) + h(a) * (b[static_cast<std::size_t>(3 + a)] + 1);
+      sub.cells(a) = b[static_cast<std::size_t>(3 + a)] - b[static_cast<std::size_t>(a)] + 1;
     }
-    const Eigen::Vector3d h = grid.cellSize();
-    Mesh all;
-    std::vector<Mesh> parts;
-    for (const auto& b : boxes) {
-      GridSpec sub;
-      Eigen::Vector3d lo, hi;
+    sub.box = Eigen::AlignedBox3d(lo, hi);
+    PolygonizeOptions local = po;
+    local.refineDeeperCells.clear();
+    for (const auto& c : deeper) {
+      bool inside = true;
       for (int a = 0; a < 3; ++a) {
-        lo(a) = grid.box.min()(a) + h(a) * b[static_cast<std::size_t>(a)];
-        hi(a) = grid.box.min()(a) + h(a) * (b[static_cast<std::size_t>(3 + a)] + 1);
-        sub.cells(a) = b[static_cast<std::size_t>(3 + a)] - b[static_cast<std::size_t>(a)] + 1;
+        inside = inside && c[static_cast<std::size_t>(a)] >= b[static_cast<std::size_t>(a)] &&
+                 c[static_cast<std::size_t>(a)] <= b[static_cast<std::size_t>(3 + a)];
       }
-      sub.box = Eigen::AlignedBox3d(lo, hi);
-      PolygonizeOptions local = po;
-      local.refineDeeperCells.clear();
-      for (const auto& c : cells) {
-        bool inside = true;
-        for (int a = 0; a < 3; ++a) {
-          inside = inside && c[static_cast<std::size_t>(a)] >= b[static_cast<std::size_t>(a)] &&
-                   c[static_cast<std::size_t>(a)] <= b[static_cast<std::size_t>(3 + a)];
-        }
-        if (inside) local.refineDeeperCells.push_back({c[0] - b[0], c[1] - b[1], c[2] - b[2]});
-      }
-      parts.push_back(std::move(polygonize(valueSampler(evaluator), sub, {iso}, local, progress.interrupter()).meshes[0]));
+      if (inside) local.refineDeeperCells.push_back({c[0] - b[0], c[1] - b[1], c[2] - b[2]});
     }
-    Eigen::Index nv = 0, nf = 0;
-    for (const Mesh& m : parts) {
-      nv += m.vertices.rows();
-      nf += m.faces.rows();
-    }
-    all.vertices.resize(nv, 3);
-    all.faces.resize(nf, 3);
-    nv = nf = 0;
-    for (const Mesh& m : parts) {
-      all.vertices.middleRows(nv, m.vertices.rows()) = m.vertices;
-      all.faces.middleRows(nf, m.faces.rows()) = m.faces.array() + static_cast<std::int32_t>(nv);
-      nv += m.vertices.rows();
-      nf += m.faces.rows();
-    }
-    return all;
-  }();
+    parts.push_back(std::move(polygonize(valueSampler(evaluator), sub, {iso}, local, progress.interrupter()).meshes[0]));
+  }
+  Eigen::Index nv = 0, nf = 0;
+  for (const Mesh& m : parts) {
+    nv += m.vertices.rows();
+    nf += m.faces.rows();
+  }
+  all.vertices.resize(nv, 3);
+  all.faces.resize(nf, 3);
+  nv = nf = 0;
+  for (const Mesh& m : parts) {
+    all.vertices.middleRows(nv, m.vertices.rows()) = m.vertices;
+    all.faces.middleRows(nf, m.faces.rows()) = m.faces.array() + static_cast<std::int32_t>(nv);
+    nv += m.vertices.rows();
+    nf += m.faces.rows();
+  }
+  return all;
+}
+
+/// spliceZone of `extracted` into `mesh` with the finishing's options, and what every local replacement
+/// must pass: a bubble of the patch dropped (as the whole extraction drops them), a closed oriented
+/// 2-manifold stays one (`before`: mesh's topology), no triangle of the patch degenerate in float32 and no
+/// intersecting pair. False with `why` otherwise.
+bool spliceChecked(const FieldEvaluator& evaluator, const ImplicitField& field, const GridSpec& grid, double iso,
+                   const SurfaceOptions& surface, double minComponent, const Mesh& mesh, const Mesh& extracted,
+                   const std::vector<std::int64_t>& inner, const std::vector<std::int64_t>& outer,
+                   const MeshTopology& before, detail::SpliceResult& sp, std::string& why) {
   const double side = field.bounds().sizes().maxCoeff(), cell = grid.cellSize().maxCoeff();
-  detail::SpliceResult sp = detail::spliceZone(mesh, extracted, grid, inner, outer,
-                                               detail::fieldGradientSampler(evaluator), iso, side,
-                                               detail::finishCleanOptions(surface.finish, cell),
-                                               detail::finishProjectOptions(surface.finish, side, cell));
+  sp = detail::spliceZone(mesh, extracted, grid, inner, outer, detail::fieldGradientSampler(evaluator), iso, side,
+                          detail::finishCleanOptions(surface.finish, cell),
+                          detail::finishProjectOptions(surface.finish, side, cell));
   if (!sp.ok) {
     why = sp.why;
     return false;
@@ -354,6 +354,25 @@ bool localNeckPassOnce(const FieldEvaluator& evaluator, const ImplicitField& fie
     why = std::to_string(crossing.count) + " intersecting triangle pairs in the patch";
     return false;
   }
+  return true;
+}
+
+/// The neck pass's local replacement on `mesh` (see neckPass): the faces around `zoneCells` are replaced by
+/// the level set extracted with `cells` refined one level more. True when kept (mesh, finish's deviation and
+/// r's counts updated); false with `why` otherwise, nothing changed. `before`: mesh's topology. In the last
+/// round the result must be within the deviation limit (the whole extraction is the caller's last resort).
+bool localNeckPassOnce(const FieldEvaluator& evaluator, const ImplicitField& field, const GridSpec& grid, double iso,
+                       const SurfaceOptions& surface, double minComponent, const std::vector<std::array<int, 3>>& cells,
+                       const std::vector<std::array<int, 3>>& zoneCells, const MeshTopology& before, bool lastRound,
+                       PolygonizeOptions po, Mesh& mesh, MeshFinishReport& finish, NeckPassReport& r, std::string& why,
+                       const std::string& label, const Progress& progress) {
+  const std::vector<std::int64_t> inner = detail::dilatedCells(grid, zoneCells, kSpliceInner);
+  const std::vector<std::int64_t> outer = detail::dilatedCells(grid, zoneCells, kSpliceInner + kSpliceGap);
+  const Mesh extracted = extractAround(evaluator, grid, outer, iso, po, cells, progress);
+  detail::SpliceResult sp;
+  if (!spliceChecked(evaluator, field, grid, iso, surface, minComponent, mesh, extracted, inner, outer, before, sp, why)) {
+    return false;
+  }
   // Judged where it changed, on every vertex and face centre: the faces put in against those taken out
   // (the whole mesh's measure samples a stride, whose maximum moves with the mesh).
   const LevelSetDeviation out = levelSetDeviation(evaluator, field, sp.removed, iso, 0);
@@ -398,6 +417,59 @@ bool localNeckPass(const FieldEvaluator& evaluator, const ImplicitField& field, 
   try {
     return localNeckPassOnce(evaluator, field, grid, iso, surface, minComponent, cells, zoneCells, before, lastRound,
                              po, mesh, finish, r, why, label, progress);
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const std::exception& e) {
+    why = e.what();
+    return false;
+  }
+}
+
+/// A mesh the phantom repair handed back (PhantomRepairResult::reextract): its level set of the repaired
+/// field extracted again in the cells around `seeds` (its vertices near the correction, input units) and
+/// spliced in, as the neck pass's local replacement is. True with `mesh` and `finish`'s deviation updated
+/// and a line for the log in `lines`; false with `why` otherwise (nothing changed). The patch must come
+/// within the deviation limit, or within the mesh's own deviation before, where it changed.
+bool spliceAroundRepair(const FieldEvaluator& evaluator, const ImplicitField& field, const GridSpec& grid, double iso,
+                        const SurfaceOptions& surface, double minComponent, const std::vector<Eigen::Vector3d>& seeds,
+                        Mesh& mesh, MeshFinishReport& finish, std::string& why, const std::string& name,
+                        std::vector<std::string>& lines, const Progress& progress) {
+  if (!(surface.finish.clean && surface.finish.project)) {
+    why = "the meshes are not cleaned and projected";
+    return false;
+  }
+  try {
+    std::vector<std::array<int, 3>> zone;
+    zone.reserve(seeds.size());
+    for (const Eigen::Vector3d& p : seeds) zone.push_back(detail::cellOf(grid, p));
+    std::sort(zone.begin(), zone.end());
+    zone.erase(std::unique(zone.begin(), zone.end()), zone.end());
+    const std::vector<std::int64_t> inner = detail::dilatedCells(grid, zone, kSpliceInner);
+    const std::vector<std::int64_t> outer = detail::dilatedCells(grid, zone, kSpliceInner + kSpliceGap);
+    const Mesh extracted = extractAround(evaluator, grid, outer, iso, surfacePolygonizeOptions(field, surface), {}, progress);
+    detail::SpliceResult sp;
+    if (!spliceChecked(evaluator, field, grid, iso, surface, minComponent, mesh, extracted, inner, outer,
+                       analyzeTopology(mesh), sp, why)) {
+      return false;
+    }
+    const LevelSetDeviation in = levelSetDeviation(evaluator, field, sp.patch, iso, 0);
+    if (!(in.max <= std::max(in.limit, finish.deviation.max))) {
+      std::ostringstream line;
+      line << std::setprecision(4) << "the patch is " << 100.0 * in.relativeMax << "% of the largest side off its level set";
+      why = line.str();
+      return false;
+    }
+    const LevelSetDeviation d = levelSetDeviation(evaluator, field, sp.mesh, iso, surface.finish.deviationSamples);
+    std::ostringstream line;
+    line << std::setprecision(4) << "phantom repair: " << name << " extracted again around the correction, "
+         << sp.removedFaces << " faces replaced by " << sp.patch.faces.rows() << " (" << sp.bandFaces << " in the band, "
+         << sp.loops << " loops): deviation there " << 100.0 * in.relativeMax << "%, of the mesh "
+         << 100.0 * d.relativeMax << "% of the largest side";
+    lines.push_back(line.str());
+    mesh = std::move(sp.mesh);
+    finish.deviation = d;
+    finish.deviationMeasured = true;
+    return true;
   } catch (const Cancelled&) {
     throw;
   } catch (const std::exception& e) {
@@ -747,34 +819,102 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
   report.selfCheck = selfCheck(meshes, isos, checkPoints, checkOptions);
   std::vector<std::pair<MeshTopology, TriangleQuality>> topology = topologies.get();
   if (repairs && !report.selfCheck.emptyComponents.empty()) {
+    PhantomRepairOptions repairOptions = options.phantomRepair;
+    repairOptions.reextractMeshes = true;
     PhantomRepairResult repaired = repairPhantoms(device, precision, result.fields[0], *evaluator, checkPoints, checkNormals,
-                                                  meshes, isos, report.selfCheck.emptyComponents, options.phantomRepair);
-    const PhantomRepairReport& pr = repaired.report;
+                                                  meshes, isos, report.selfCheck.emptyComponents, repairOptions);
+    PhantomRepairReport& pr = repaired.report;
+    // The meshes as the repair leaves them: its moves and removals applied, and the meshes it hands back
+    // extracted again around the correction and spliced in. When a splice fails the whole repair is
+    // refused (field and meshes stay as they were).
+    std::vector<Mesh> next;
+    std::vector<MeshFinishReport> nextFinished;
+    std::vector<std::string> spliceLines;
+    if (repaired.field) {
+      const auto spliceStart = Clock::now();
+      next = meshes;
+      nextFinished = finished;
+      for (std::size_t j = 0; j < repaired.moves.size() && j < next.size(); ++j) {
+        for (const auto& [v, x] : repaired.moves[j]) next[j].vertices.row(v) = x.transpose();
+      }
+      for (std::size_t j = 0; j < repaired.removedFaces.size() && j < next.size(); ++j) {
+        if (repaired.removedFaces[j].empty()) continue;
+        std::vector<char> keep(static_cast<std::size_t>(next[j].faces.rows()), 1);
+        for (const Index f : repaired.removedFaces[j]) keep[static_cast<std::size_t>(f)] = 0;
+        next[j] = keepFaces(next[j], keep);
+      }
+      for (std::size_t j = 0; j < repaired.reextract.size() && j < next.size() && pr.refused.empty(); ++j) {
+        if (repaired.reextract[j].empty()) continue;
+        std::string why;
+        const std::string name = surfaceName(static_cast<int>(j));
+        if (spliceAroundRepair(*repaired.evaluator, *repaired.field, report.grid, isos[j], surface,
+                               dropFraction(options.selfCheck, j), repaired.reextract[j], next[j], nextFinished[j], why,
+                               name, spliceLines, progress)) {
+          continue;
+        }
+        // The local replacement refused (armadillo_43k's offsets at δ = 0.01 and −0.02, wheel_29k's at −0.02:
+        // a patch off its level set, crossing or float32-degenerate triangles in it): the whole level set of
+        // the repaired field again, as the first extraction and finishing made it.
+        try {
+          const auto wholeStart = Clock::now();
+          PolygonizeResult whole = polygonize(valueSampler(*repaired.evaluator), report.grid, {isos[j]},
+                                              surfacePolygonizeOptions(*repaired.field, surface), progress.interrupter());
+          std::vector<Mesh> one;
+          one.push_back(dropSmallComponents(whole.meshes[0], dropFraction(options.selfCheck, j)).mesh);
+          whole.meshes.clear();
+          MeshFinishOptions single = surface.finish;
+          single.concurrentMeshes = 1;
+          FinishResult again = finishSurfaces(*repaired.evaluator, *repaired.field, std::move(one), {isos[j]},
+                                              report.grid.cellSize().maxCoeff(), single, progress.interrupter());
+          next[j] = std::move(again.meshes[0]);
+          nextFinished[j] = again.reports[0];
+          neckPass(*repaired.evaluator, *repaired.field, report.grid, isos[j], surface, dropFraction(options.selfCheck, j),
+                   next[j], nextFinished[j], name, progress);
+          std::ostringstream line;
+          line << std::setprecision(4) << "phantom repair: " << name << " extracted again whole (the local replacement: "
+               << why << "), " << next[j].faces.rows() << " triangles, deviation "
+               << 100.0 * nextFinished[j].deviation.relativeMax << "% of the largest side, " << secondsSince(wholeStart)
+               << " s";
+          spliceLines.push_back(line.str());
+        } catch (const Cancelled&) {
+          throw;
+        } catch (const std::exception& e) {
+          pr.refused = "the level set of " + name + " could not be extracted again around the correction (" + why +
+                       ") nor whole (" + e.what() + ")";
+        }
+      }
+      pr.reextractSeconds = secondsSince(spliceStart);
+      if (!pr.refused.empty()) {
+        pr.refusedPhantoms += pr.repaired;
+        pr.repaired = pr.repairedFaces = pr.offsetFaces = pr.reextracted = 0;
+        pr.maxChange = pr.maxDeviation = 0.0;
+        repaired.field.reset();
+        repaired.evaluator.reset();
+      }
+    }
     if (repaired.field) {
       result.fields[0] = std::move(*repaired.field);
       evaluator = std::move(repaired.evaluator);  // the repair's checks built it for the repaired field
-      for (std::size_t j = 0; j < repaired.moves.size() && j < meshes.size(); ++j) {
-        for (const auto& [v, x] : repaired.moves[j]) meshes[j].vertices.row(v) = x.transpose();
-      }
-      for (std::size_t j = 0; j < repaired.removedFaces.size() && j < meshes.size(); ++j) {
-        if (repaired.removedFaces[j].empty()) continue;
-        std::vector<char> keep(static_cast<std::size_t>(meshes[j].faces.rows()), 1);
-        for (const Index f : repaired.removedFaces[j]) keep[static_cast<std::size_t>(f)] = 0;
-        meshes[j] = keepFaces(meshes[j], keep);
-      }
-      for (std::size_t j = 0; j < meshes.size(); ++j) {  // faces removed or vertices moved
+      for (std::size_t j = 0; j < meshes.size(); ++j) {  // faces removed, vertices moved or extracted again
         const bool removed = j < repaired.removedFaces.size() && !repaired.removedFaces[j].empty();
         const bool moved = j < repaired.moves.size() && !repaired.moves[j].empty();
-        if (removed) topology[j].first = analyzeTopology(meshes[j]);
-        if (removed || moved) topology[j].second = triangleQuality(meshes[j]);
+        const bool again = j < repaired.reextract.size() && !repaired.reextract[j].empty();
+        if (removed || again) topology[j].first = analyzeTopology(next[j]);
+        if (removed || moved || again) topology[j].second = triangleQuality(next[j]);
       }
+      meshes = std::move(next);
+      finished = std::move(nextFinished);
+      for (const std::string& line : spliceLines) progress.log(line);
       progress.log("phantom repair: " + std::to_string(pr.repaired) + " zero-level component(s) without input points (" +
                    std::to_string(pr.repairedFaces) + " faces) removed from the field and the mesh" +
                    (pr.offsetFaces > 0 ? " with " + std::to_string(pr.offsetFaces) + " offset faces inside them" : std::string()) +
                    " (" +
                    std::to_string(pr.anchors) + " anchors, " + std::to_string(pr.keepPoints) +
                    " keep points at the finest level; vertices beside it moved by at most " + numText(pr.maxChange) +
-                   " onto the level sets), " + std::to_string(pr.seconds) + " s");
+                   " onto the level sets" +
+                   (pr.reextracted > 0 ? ", " + std::to_string(pr.reextracted) + " mesh(es) extracted again around it"
+                                       : std::string()) +
+                   "), " + std::to_string(pr.seconds + pr.reextractSeconds) + " s");
       if (pr.refusedPhantoms > 0) {
         progress.log("phantom repair: " + std::to_string(pr.refusedPhantoms) + " candidate(s) left as they were (" +
                      pr.firstRefusal + ")");

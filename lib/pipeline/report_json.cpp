@@ -565,9 +565,12 @@ void writePipelineReport(std::ostream& out, const PipelineResult& result, const 
                              {"repaired_faces", pr.repairedFaces}, {"offset_faces", pr.offsetFaces},
                              {"not_phantom", pr.notPhantom},
                              {"anchors", pr.anchors},         {"keep_points", pr.keepPoints},
+                             {"restored_keep_points", pr.restored},
                              {"max_change", pr.maxChange},    {"max_deviation", pr.maxDeviation},
                              {"rounds", pr.rounds}, {"iterations", pr.iterations},
-                             {"refused_phantoms", pr.refusedPhantoms}, {"first_refusal", pr.firstRefusal},           {"refused", pr.refused},
+                             {"refused_phantoms", pr.refusedPhantoms}, {"first_refusal", pr.firstRefusal},
+                             {"refused", pr.refused},         {"reextracted", pr.reextracted},
+                             {"reextract_seconds", pr.reextractSeconds},
                              {"seconds", pr.seconds}};
   w["shell"] = shellJson(result, meshNames, meshFormat);
   w["grid"] = Json{{"nx", report.grid.cells.x()},
