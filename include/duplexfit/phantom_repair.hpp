@@ -5,8 +5,9 @@
 // component with the signed distance to the cloud as target, and centres that keep f where it is at the
 // input points, their offset companions and off-surface points around them. A phantom's correction is
 // kept only when its anchors' signs hold, f has the surroundings' sign on a grid over the component, and
-// the other meshes' vertices near it follow their level sets by a bounded move without turning a face;
-// a phantom that fails is left out and the others are solved again without it.
+// the other meshes' vertices near it follow their level sets by a bounded move without turning a face (or,
+// with reextractMeshes, a mesh they cannot follow is handed back to be extracted again there); a phantom
+// that fails is left out and the others are solved again without it.
 #pragma once
 
 #include <cstddef>
@@ -45,7 +46,10 @@ struct PhantomRepairOptions {
   /// More correction centres than this: refused (a phantom that large is not a pocket's).
   std::size_t maxCentres = 50000;
   /// The other meshes' vertices within σ_M of a correction centre follow their level sets: by at most this
-  /// fraction of the largest side of the input's box (five times the neck pass's deviation limit).
+  /// fraction of the largest side of the input's box (five times the neck pass's deviation limit), unless
+  /// the vertex ends within it of the mesh's old vertices or of its distance to the samples (|δ_j|, the
+  /// disk-soup distance), or nearer to that distance than it started (a part of the level set that went
+  /// with the phantom, not a shift of the rest).
   double maxChange = 5e-3;
   /// When a mesh's vertices near the correction cannot follow their level set (a path that finds none, a
   /// face that would turn: the level set there changed its shape, as around a phantom void's offset),
