@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 #include <vector>
 
 #include "duplexfit/field.hpp"
@@ -56,6 +57,24 @@ const FittedSphere& fittedSphere() {
   return s;
 }
 
+/// `clean` with centres of its finest level added at the given points (input units), each weighted so that f
+/// there becomes the value given (the centres lie more than σ_M apart: each adds 1 × its weight at its own
+/// point only).
+ImplicitField plantCentres(const ImplicitField& clean, const std::vector<std::pair<Eigen::Vector3d, double>>& centres) {
+  const Normalization& norm = clean.normalization();
+  std::vector<FieldLevel> levels = clean.levels();
+  FieldLevel& finest = levels.back();
+  const Eigen::Index n = finest.centres.rows();
+  finest.centres.conservativeResize(n + static_cast<Eigen::Index>(centres.size()), 3);
+  finest.weights.conservativeResize(n + static_cast<Eigen::Index>(centres.size()));
+  for (std::size_t k = 0; k < centres.size(); ++k) {
+    const auto row = n + static_cast<Eigen::Index>(k);
+    finest.centres.row(row) = norm.scale * (centres[k].first - norm.centre).transpose();
+    finest.weights[row] = (centres[k].second - clean.value(centres[k].first)) * norm.scale;
+  }
+  return ImplicitField(norm, clean.f0(), levels, clean.offsets(), clean.bounds());
+}
+
 }  // namespace
 
 TEST_SUITE("fit") {
@@ -64,22 +83,14 @@ TEST_SUITE("fit") {
     const double radius = fs.radius, delta = fs.delta, sigma = fs.sigma;
     const PointSet& cloud = fs.cloud;
     const ImplicitField& clean = fs.fitted.field;
-    const Normalization& norm = clean.normalization();
     MESSAGE("sigma_M " << sigma);
     REQUIRE(sigma < 0.1);
 
     // The blob: one centre of the finest level 2σ_M outside the sphere, lifting f there to +σ_M (a ball of about σ_M/4).
     // Along the box diagonal, so that it lies inside the cloud's box (which the grid covers).
     const Eigen::Vector3d blob = (radius + 2.0 * sigma) * Eigen::Vector3d(1.0, 1.0, 1.0).normalized();
-    const double before = clean.value(blob);
-    CHECK(before < 0.0);
-    std::vector<FieldLevel> levels = clean.levels();
-    FieldLevel& finest = levels.back();
-    finest.centres.conservativeResize(finest.centres.rows() + 1, 3);
-    finest.centres.row(finest.centres.rows() - 1) = norm.scale * (blob - norm.centre).transpose();
-    finest.weights.conservativeResize(finest.weights.size() + 1);
-    finest.weights[finest.weights.size() - 1] = (sigma - before) * norm.scale;
-    const ImplicitField planted(norm, clean.f0(), levels, clean.offsets(), clean.bounds());
+    CHECK(clean.value(blob) < 0.0);
+    const ImplicitField planted = plantCentres(clean, {{blob, sigma}});
     REQUIRE(planted.value(blob) > 0.0);
 
     const std::vector<double> isos{0.0, delta};
@@ -153,23 +164,13 @@ TEST_SUITE("fit") {
     const double radius = fs.radius, delta = fs.delta, sigma = fs.sigma;
     const PointSet& cloud = fs.cloud;
     const ImplicitField& clean = fs.fitted.field;
-    const Normalization& norm = clean.normalization();
     // Blob A 2σ_M outside the sphere, blob B σ_M outside on another diagonal: B's correction moves the
     // sphere's meshes more than A's, and away from the samples (a move beyond the bound that ends within
     // it of where the level set was or of its distance to the samples is accepted: at 1.4σ_M, B's
     // 3.4e-5 did, its vertices staying within 3e-5 of the samples' disks).
     const Eigen::Vector3d a = (radius + 2.0 * sigma) * Eigen::Vector3d(1.0, 1.0, 1.0).normalized();
     const Eigen::Vector3d b = (radius + 1.0 * sigma) * Eigen::Vector3d(-1.0, -1.0, 1.0).normalized();
-    std::vector<FieldLevel> levels = clean.levels();
-    FieldLevel& finest = levels.back();
-    const Eigen::Index n = finest.centres.rows();
-    finest.centres.conservativeResize(n + 2, 3);
-    finest.weights.conservativeResize(n + 2);
-    finest.centres.row(n) = norm.scale * (a - norm.centre).transpose();
-    finest.centres.row(n + 1) = norm.scale * (b - norm.centre).transpose();
-    finest.weights[n] = (sigma - clean.value(a)) * norm.scale;
-    finest.weights[n + 1] = (0.6 * sigma - clean.value(b)) * norm.scale;
-    const ImplicitField planted(norm, clean.f0(), levels, clean.offsets(), clean.bounds());
+    const ImplicitField planted = plantCentres(clean, {{a, sigma}, {b, 0.6 * sigma}});
     const std::vector<double> isos{0.0, delta};
     const SurfaceResult meshes = extractSurfaces(repairDevice(), planted, isos);
     const std::vector<EmptyComponent> empty = emptyZeroLevelComponents(meshes.meshes[0], cloud.positions(), 1.0);
@@ -217,20 +218,12 @@ TEST_SUITE("fit") {
     const double radius = fs.radius, delta = fs.delta, sigma = fs.sigma;
     const PointSet& cloud = fs.cloud;
     const ImplicitField& clean = fs.fitted.field;
-    const Normalization& norm = clean.normalization();
     // The void: one centre of the finest level δ + σ_M/2 deep, lowering f there to −σ_M/2. The δ level wraps
     // it and, so near the offset sheet, joins it: a lobe of the offset, not a component of its own, which
     // no vertex move can take back (its vertices find no level set once the void is filled).
     const Eigen::Vector3d hole = (radius - delta - 0.5 * sigma) * Eigen::Vector3d(1.0, -1.0, 1.0).normalized();
-    const double before = clean.value(hole);
-    CHECK(before > 0.0);
-    std::vector<FieldLevel> levels = clean.levels();
-    FieldLevel& finest = levels.back();
-    finest.centres.conservativeResize(finest.centres.rows() + 1, 3);
-    finest.centres.row(finest.centres.rows() - 1) = norm.scale * (hole - norm.centre).transpose();
-    finest.weights.conservativeResize(finest.weights.size() + 1);
-    finest.weights[finest.weights.size() - 1] = (-0.5 * sigma - before) * norm.scale;
-    const ImplicitField planted(norm, clean.f0(), levels, clean.offsets(), clean.bounds());
+    CHECK(clean.value(hole) > 0.0);
+    const ImplicitField planted = plantCentres(clean, {{hole, -0.5 * sigma}});
     REQUIRE(planted.value(hole) < 0.0);
 
     const std::vector<double> isos{0.0, delta};
