@@ -825,8 +825,8 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
                                                   meshes, isos, report.selfCheck.emptyComponents, repairOptions);
     PhantomRepairReport& pr = repaired.report;
     // The meshes as the repair leaves them: its moves and removals applied, and the meshes it hands back
-    // extracted again around the correction and spliced in. When a splice fails the whole repair is
-    // refused (field and meshes stay as they were).
+    // extracted again around the correction and spliced in (or extracted whole again when the splice is
+    // refused). When both fail for a mesh the whole repair is refused (field and meshes stay as they were).
     std::vector<Mesh> next;
     std::vector<MeshFinishReport> nextFinished;
     std::vector<std::string> spliceLines;
