@@ -425,6 +425,19 @@ bool localNeckPass(const FieldEvaluator& evaluator, const ImplicitField& field, 
   }
 }
 
+/// The level set {f = iso} extracted again on the whole grid with `po`, its components below minComponent
+/// dropped, and finished: the neck pass's whole-mesh round and the phantom repair's last resort.
+FinishResult extractWhole(const FieldEvaluator& evaluator, const ImplicitField& field, const GridSpec& grid, double iso,
+                          const SurfaceOptions& surface, double minComponent, const PolygonizeOptions& po,
+                          const Progress& progress) {
+  PolygonizeResult extracted = polygonize(valueSampler(evaluator), grid, {iso}, po, progress.interrupter());
+  std::vector<Mesh> one;
+  one.push_back(dropSmallComponents(extracted.meshes[0], minComponent).mesh);
+  extracted.meshes.clear();
+  return finishSurfaces(evaluator, field, std::move(one), {iso}, grid.cellSize().maxCoeff(), surface.finish,
+                        progress.interrupter());
+}
+
 /// A mesh the phantom repair handed back (PhantomRepairResult::reextract): its level set of the repaired
 /// field extracted again in the cells around `seeds` (its vertices near the correction, input units) and
 /// spliced in, as the neck pass's local replacement is. True with `mesh` and `finish`'s deviation updated
@@ -597,12 +610,7 @@ bool neckPass(const FieldEvaluator& evaluator, const ImplicitField& field, const
       progress.log(line.str());
       r.local = false;
     }
-    PolygonizeResult extracted = polygonize(valueSampler(evaluator), grid, {iso}, po, progress.interrupter());
-    std::vector<Mesh> one;
-    one.push_back(dropSmallComponents(extracted.meshes[0], minComponent).mesh);
-    extracted.meshes.clear();
-    FinishResult again = finishSurfaces(evaluator, field, std::move(one), {iso}, grid.cellSize().maxCoeff(),
-                                        surface.finish, progress.interrupter());
+    FinishResult again = extractWhole(evaluator, field, grid, iso, surface, minComponent, po, progress);
     const MeshTopology after = analyzeTopology(again.meshes[0]);
     const double was = finish.deviation.relativeMax, now = again.reports[0].deviation.relativeMax;
     const bool better = again.reports[0].deviationMeasured && now < was &&
@@ -857,15 +865,9 @@ void extractAndFinish(const Device& device, PipelineResult& result, std::shared_
         // the repaired field again, as the first extraction and finishing made it.
         try {
           const auto wholeStart = Clock::now();
-          PolygonizeResult whole = polygonize(valueSampler(*repaired.evaluator), report.grid, {isos[j]},
-                                              surfacePolygonizeOptions(*repaired.field, surface), progress.interrupter());
-          std::vector<Mesh> one;
-          one.push_back(dropSmallComponents(whole.meshes[0], dropFraction(options.selfCheck, j)).mesh);
-          whole.meshes.clear();
-          MeshFinishOptions single = surface.finish;
-          single.concurrentMeshes = 1;
-          FinishResult again = finishSurfaces(*repaired.evaluator, *repaired.field, std::move(one), {isos[j]},
-                                              report.grid.cellSize().maxCoeff(), single, progress.interrupter());
+          FinishResult again = extractWhole(*repaired.evaluator, *repaired.field, report.grid, isos[j], surface,
+                                            dropFraction(options.selfCheck, j),
+                                            surfacePolygonizeOptions(*repaired.field, surface), progress);
           next[j] = std::move(again.meshes[0]);
           nextFinished[j] = again.reports[0];
           neckPass(*repaired.evaluator, *repaired.field, report.grid, isos[j], surface, dropFraction(options.selfCheck, j),
